@@ -1,0 +1,737 @@
+"""Compiled per-step kernel of the MPC driver: input checks, targets, modes, bounds and
+the unconstrained fast path, for a whole batch of drivers in one call.
+
+Everything here is plain arithmetic over arrays so that numba compiles it once; the
+logic it implements is documented in :mod:`acc_gym.drivers.mpc`. The bounds are
+written in the layout the QP backends take (:mod:`acc_gym.drivers.qp`)::
+
+    [ box u_0..u_{N-1} | box s | gap rows (N) | v>=0 rows (N) | v<=v_max rows (N) | rate rows (N-1) ]
+
+so the kernel's feasibility check and the QP solvers read the same numbers.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from acc_gym.drivers.qp import K_TERM
+from acc_gym.vehicle import accel_lower_core, accel_upper_core
+
+_accel_upper = numba.njit(cache=True, error_model="numpy")(accel_upper_core)
+_accel_lower = numba.njit(cache=True, error_model="numpy")(accel_lower_core)
+
+INF = 1e30
+
+# Modes (mirrored by acc_gym.drivers.mpc.Mode)
+ACCELERATE, SAIL, BRAKE, EMERGENCY = 0, 1, 2, 3
+# Targets
+LEAD, STOP, CRUISE = 0, 1, 2
+# Paths (how a step's input was obtained)
+FAST, ACTIVE_SET, QP, HOLD, FALLBACK = 0, 1, 2, 3, 4
+# Statistics columns
+ST_STEPS, ST_FAST, ST_ACTIVE_SET, ST_QP, ST_HOLD, ST_FALLBACK, ST_SLACK, ST_EMERGENCY = range(8)
+N_STATS = 8
+MAX_ACTIVE = 48  # active constraints remembered per driver for the warm start
+MAX_AS_ITER = 16  # add/drop iterations of the warm active-set solver before handing over
+
+# Driver-parameter matrix columns (MPCDriver builds it); the vehicle's columns follow.
+A_MAX, A_MIN, A_REQ_SAIL, A_SAIL, C_TG, X_MIN, V_DES, V_MAX, JERK, JERK_EM = range(10)
+N_DRIVER_COLS = 10
+EMERGENCY_MARGIN = 1.25  # emergency plans may brake 25 % harder than kinematically needed
+C_ALPHA = N_DRIVER_COLS + 10  # after the vehicle's 10 columns: terminal chords (alpha, then beta)
+C_BETA = C_ALPHA + K_TERM
+# Settings vector
+S_DT, S_ZOH, S_HYST, S_CREEP, S_PULL, S_FEAS, S_LEADACC, S_SLACK_LIN, S_WARM = range(9)
+# Work matrix columns (outputs)
+W_U0, W_TARGET, W_AREQ, W_PATH, W_TH0, W_TH1, W_LOWER0, W_UPPER0, W_DR, W_MODE_PRE, W_VIOL, W_SLACK, W_ITER, W_ANEED = range(14)
+N_WORK = 14  # theta = (W_TH0, W_TH1, u_prev)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def vehicle_limits(P, i, v):
+    c = N_DRIVER_COLS
+    a_up = _accel_upper(v, P[i, c], P[i, c + 1], P[i, c + 2], P[i, c + 3], P[i, c + 4], P[i, c + 5],
+                        P[i, c + 6], P[i, c + 7], P[i, c + 8])
+    a_lo = _accel_lower(v, P[i, c], P[i, c + 1], P[i, c + 2], P[i, c + 3], P[i, c + 4], P[i, c + 5],
+                        P[i, c + 6], P[i, c + 9])
+    return a_up, a_lo
+
+
+@numba.njit(cache=True, error_model="numpy")
+def required_decel(R, dR):
+    """Eq. (10): ``sign(dR) dR^2 / (2R)``; an overlap (R <= 0) needs an infinite deceleration."""
+    if R <= 0.0:
+        return -np.inf
+    s = 1.0 if dR > 0.0 else (-1.0 if dR < 0.0 else 0.0)
+    return s * dR * dR / (2.0 * R)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def fill_bounds(P, S, i, m, v, u_prev, a_need, lower, upper):
+    """Input box, speed and rate rows of driver ``i`` in mode ``m``; returns (lower0, upper0).
+
+    ``a_need`` [m/s^2]: the constant deceleration that would stop the closing on the most
+    demanding real target at ``x_min`` (0 if not closing); it sets the emergency range."""
+    n = (lower.shape[1] - 2 * K_TERM) // 5
+    dt = S[S_DT]
+    a_up, a_lo = vehicle_limits(P, i, v)
+    a_max, a_min, a_sail = P[i, A_MAX], P[i, A_MIN], P[i, A_SAIL]
+    if m == EMERGENCY:
+        # brake as hard as the situation needs (with a margin), not harder: the range
+        # reaches down to 1.25 times the kinematically needed deceleration, at the
+        # emergency jerk; a_need = -inf opens the vehicle's whole braking range
+        env_lo = max(a_lo, min(a_min, EMERGENCY_MARGIN * a_need))
+        rate = P[i, JERK_EM] * dt
+        rate0 = rate
+        mode_lo, mode_hi = env_lo, min(a_sail, a_up)
+    else:
+        env_lo = max(a_min, a_lo)
+        rate = P[i, JERK] * dt
+        # recovering from braking harder than the driver's own limit: release at the emergency rate
+        rate0 = P[i, JERK_EM] * dt if u_prev < a_min - 1e-9 else rate
+        if m == ACCELERATE:
+            mode_lo, mode_hi = max(a_sail, a_lo), min(a_max, a_up)
+        else:
+            mode_lo, mode_hi = env_lo, min(a_sail, a_up)
+    env_hi = min(a_max, a_up)
+    # ramp: move towards the mode's range at the rate limit, never jump
+    lower0 = max(min(mode_lo, u_prev + rate0), u_prev - rate0)
+    upper0 = min(max(mode_hi, u_prev - rate0), u_prev + rate0)
+    lower[i, 0] = lower0
+    upper[i, 0] = upper0
+    for k in range(1, n):
+        lower[i, k] = env_lo
+        upper[i, k] = env_hi
+    lower[i, n] = 0.0
+    upper[i, n] = INF
+    r0 = n + 1
+    # speed above v_max (e.g. v_desired lowered): the bound follows the slowest reachable speed
+    slowest = 0.0
+    ulow = lower0
+    for k in range(n):
+        if k > 0:
+            ulow = max(lower[i, k], ulow - rate)
+        slowest += dt * ulow
+        lower[i, r0 + n + k] = -INF
+        upper[i, r0 + n + k] = v
+        lower[i, r0 + 2 * n + k] = -INF
+        upper[i, r0 + 2 * n + k] = max(P[i, V_MAX] - v, slowest)
+    for k in range(n - 1):
+        lower[i, r0 + 3 * n + k] = -rate
+        upper[i, r0 + 3 * n + k] = rate
+    return lower0, upper0
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _check_inputs(v0, u_prev, gap, v_lead, a_lead, stop_gap):
+    """0 if fine, else 1 + index of the offending field (see FIELDS in mpc.py)."""
+    for i in range(v0.shape[0]):
+        if not (np.isfinite(v0[i]) and v0[i] >= 0.0):
+            return 1
+        if not np.isfinite(u_prev[i]):
+            return 2
+        if np.isnan(gap[i]) or gap[i] == -np.inf:
+            return 3
+        if not np.isfinite(v_lead[i]) or v_lead[i] < 0.0:
+            return 4
+        if not np.isfinite(a_lead[i]):
+            return 5
+        if np.isnan(stop_gap[i]) or stop_gap[i] == -np.inf:
+            return 6
+    return 0
+
+
+# --------------------------------------------------------------------------------------
+# Constraint rows as structured vectors (no dense G needed inside the kernel)
+# Constraint index c in the bounds layout; kinds: 0 box, 1 gap, 2 v>=0, 3 v<=v_max, 4 rate,
+# 5 slack box. An active constraint is stored as code = 2 c + side (side 1: upper bound).
+# --------------------------------------------------------------------------------------
+
+@numba.njit(cache=True)
+def _kind(c, n):
+    if c < n:
+        return 0, c
+    if c == n:
+        return 5, 0
+    r = c - n - 1
+    if r < 3 * n:
+        return 1 + r // n, r % n
+    if r < 4 * n - 1:
+        return 4, r - 3 * n
+    t = r - (4 * n - 1)
+    return 6 + t // K_TERM, t % K_TERM
+
+
+@numba.njit(cache=True)
+def _tp(k, j, dt, zoh):
+    """Position response at state k+1 to a unit input at j <= k."""
+    return dt * dt * ((k - j) + (0.5 if zoh else 0.0))
+
+
+@numba.njit(cache=True)
+def _prefix(x, p0, p1):
+    """Running sums ``p0[k] = sum_{j<=k} x_j`` and ``p1[k] = sum_{j<=k} j x_j``."""
+    a0 = 0.0
+    a1 = 0.0
+    for j in range(x.shape[0]):
+        a0 += x[j]
+        a1 += j * x[j]
+        p0[j] = a0
+        p1[j] = a1
+
+
+@numba.njit(cache=True)
+def _row_dot(kind, k, x, p0, p1, dt, zoh, beta):
+    """``g_c . x`` for the row of constraint (kind, k), in O(1) from the prefix sums of ``x``.
+
+    Position rows use ``sum_{j<=k} dt^2 (k - j + h) x_j = dt^2 ((k + h) p0[k] - p1[k])``
+    (``h = 1/2`` for the exact discretisation, 0 for Euler)."""
+    n = x.shape[0]
+    h = 0.5 if zoh else 0.0
+    if kind == 0:
+        return x[k]
+    if kind == 4:
+        return x[k + 1] - x[k]
+    if kind >= 6:  # terminal row k: position plus beta_k times speed at the horizon's end
+        e = n - 1
+        return dt * dt * ((e + h) * p0[e] - p1[e]) + beta[k] * dt * p0[e]
+    if kind == 1:
+        return dt * dt * ((k + h) * p0[k] - p1[k])
+    if kind == 2:
+        return -dt * p0[k]
+    return dt * p0[k]
+
+
+@numba.njit(cache=True)
+def _row_hinv(kind, k, hc, out, dt, zoh, beta):
+    """``out = H^-1 g_c`` in O(N) from the column sums ``hc[0][:, k] = sum_{j<=k} H^-1[:, j]``
+    and ``hc[1][:, k] = sum_{j<=k} j H^-1[:, j]``."""
+    c0 = hc[0]
+    c1 = hc[1]
+    n = out.shape[0]
+    h = 0.5 if zoh else 0.0
+    if kind == 0:
+        for r in range(n):
+            out[r] = c0[r, k] - (c0[r, k - 1] if k > 0 else 0.0)
+    elif kind == 4:
+        for r in range(n):
+            out[r] = (c0[r, k + 1] - c0[r, k]) - (c0[r, k] - (c0[r, k - 1] if k > 0 else 0.0))
+    elif kind >= 6:
+        e = n - 1
+        for r in range(n):
+            out[r] = dt * dt * ((e + h) * c0[r, e] - c1[r, e]) + beta[k] * dt * c0[r, e]
+    elif kind == 1:
+        for r in range(n):
+            out[r] = dt * dt * ((k + h) * c0[r, k] - c1[r, k])
+    else:
+        sgn = -dt if kind == 2 else dt
+        for r in range(n):
+            out[r] = sgn * c0[r, k]
+
+
+@numba.njit(cache=True)
+def _skipped(c, skip, n_skip):
+    for q in range(n_skip):
+        if skip[q] >> 1 == c:
+            return True
+    return False
+
+
+@numba.njit(cache=True)
+def _scan(u, lo, up, n, dt, zoh, skip, n_skip, beta):
+    """Largest violation of the plan ``u`` (s = 0) and its code (2c + side); codes in skip ignored.
+
+    Straight-line over the rows: the box and rate rows are two-sided, the gap, speed and
+    terminal rows one-sided (upper bounds only)."""
+    worst = -np.inf
+    code = -1
+    dv = 0.0
+    dp = 0.0
+    r0 = n + 1
+    half = 0.5 * dt * dt if zoh else 0.0
+    for k in range(n):
+        z = u[k]
+        dp += dt * dv + half * z
+        dv += dt * z
+        d = z - up[k]
+        if d > worst and not _skipped(k, skip, n_skip):
+            worst, code = d, 2 * k + 1
+        d = lo[k] - z
+        if d > worst and not _skipped(k, skip, n_skip):
+            worst, code = d, 2 * k
+        c = r0 + k
+        d = dp - up[c]
+        if d > worst and not _skipped(c, skip, n_skip):
+            worst, code = d, 2 * c + 1
+        c += n
+        d = -dv - up[c]
+        if d > worst and not _skipped(c, skip, n_skip):
+            worst, code = d, 2 * c + 1
+        c += n
+        d = dv - up[c]
+        if d > worst and not _skipped(c, skip, n_skip):
+            worst, code = d, 2 * c + 1
+        if k < n - 1:
+            c += n
+            du = u[k + 1] - z
+            d = du - up[c]
+            if d > worst and not _skipped(c, skip, n_skip):
+                worst, code = d, 2 * c + 1
+            d = lo[c] - du
+            if d > worst and not _skipped(c, skip, n_skip):
+                worst, code = d, 2 * c
+    for j in range(2 * K_TERM):
+        c = 5 * n + j
+        d = dp + beta[j % K_TERM] * dv - up[c]
+        if d > worst and not _skipped(c, skip, n_skip):
+            worst, code = d, 2 * c + 1
+    return worst, code
+
+
+@numba.njit(cache=True)
+def _as_add(code, a, u_p0, u_p1, u_unc, hc, lo, up, n, dt, zoh, beta, codes, wbuf, p0buf, p1buf, sbuf, rvec):
+    """Put constraint ``code`` at position ``a`` of the working set: its H^-1 g, Schur row, residual."""
+    c = code >> 1
+    kind, k = _kind(c, n)
+    codes[a] = code
+    _row_hinv(kind, k, hc, wbuf[a], dt, zoh, beta)
+    _prefix(wbuf[a], p0buf[a], p1buf[a])
+    for b in range(a + 1):
+        sbuf[a, b] = _row_dot(kind, k, wbuf[b], p0buf[b], p1buf[b], dt, zoh, beta)
+        sbuf[b, a] = sbuf[a, b]
+    bound = up[c] if (code & 1) else lo[c]
+    rvec[a] = _row_dot(kind, k, u_unc, u_p0, u_p1, dt, zoh, beta) - bound
+    return kind
+
+
+@numba.njit(cache=True)
+def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin, beta, out,
+                      wbuf, p0buf, p1buf, sbuf, lbuf, rvec, lam, u_p0, u_p1):
+    """Exact QP optimum from a warm working set, verified by the KKT conditions.
+
+    Starting from ``codes[:m0]``, drop the constraint with the most negative multiplier
+    and add the most violated one until the KKT conditions of the QP with ``s = 0`` hold
+    (primal feasibility of every row, non-negative multipliers, and state multipliers
+    summing below the slack's exact-penalty weight so that ``s = 0`` is optimal too).
+    The working set's ``H^-1 g`` vectors and Schur complement are updated one
+    constraint at a time. Returns ``(ok, m)``: whether the KKT conditions hold, and the
+    size of the final working set (in ``codes``; a warm start for the backend if not ok).
+    """
+    _prefix(u_unc, u_p0, u_p1)
+    m = 0
+    for a in range(m0):
+        if _kind(codes[a] >> 1, n)[0] == 5:
+            continue
+        _as_add(codes[a], m, u_p0, u_p1, u_unc, hc, lo, up, n, dt, zoh, beta, codes, wbuf, p0buf, p1buf, sbuf, rvec)
+        m += 1
+    for _ in range(MAX_AS_ITER):
+        # Cholesky of the Schur complement S = G_A H^-1 G_A', then lam = S^-1 r
+        for a in range(m):
+            for b in range(a + 1):
+                acc = sbuf[a, b]
+                for t in range(b):
+                    acc -= lbuf[a, t] * lbuf[b, t]
+                if a == b:
+                    if acc <= 1e-12 * max(1.0, abs(sbuf[a, a])):
+                        return False, m  # dependent active rows: leave it to the backend
+                    lbuf[a, a] = np.sqrt(acc)
+                else:
+                    lbuf[a, b] = acc / lbuf[b, b]
+        for a in range(m):
+            acc = rvec[a]
+            for t in range(a):
+                acc -= lbuf[a, t] * lam[t]
+            lam[a] = acc / lbuf[a, a]
+        for a in range(m - 1, -1, -1):
+            acc = lam[a]
+            for t in range(a + 1, m):
+                acc -= lbuf[t, a] * lam[t]
+            lam[a] = acc / lbuf[a, a]
+        for r in range(n):
+            acc = u_unc[r]
+            for a in range(m):
+                acc -= wbuf[a, r] * lam[a]
+            out[r] = acc
+        # multipliers: mu = lam on an upper bound, -lam on a lower bound
+        worst_mu = 0.0
+        j_mu = -1
+        state_mu = 0.0
+        big_mu = 0.0
+        for a in range(m):
+            big_mu = max(big_mu, abs(lam[a]))
+        for a in range(m):
+            mu = lam[a] if (codes[a] & 1) else -lam[a]
+            kind = _kind(codes[a] >> 1, n)[0]
+            if kind != 0 and kind != 4:
+                state_mu += max(mu, 0.0)
+            if mu < worst_mu:
+                worst_mu, j_mu = mu, a
+        viol, code = _scan(out, lo, up, n, dt, zoh, codes, m, beta)
+        mu_tol = 1e-9 * (1.0 + big_mu)
+        if viol <= feas and worst_mu >= -mu_tol and state_mu < slack_lin:
+            return True, m
+        if state_mu >= slack_lin:
+            return False, m  # the optimum uses the slack
+        if j_mu >= 0 and worst_mu < -mu_tol:
+            # drop j: move the last member into its place (rows and columns of S too)
+            last = m - 1
+            if j_mu != last:
+                codes[j_mu] = codes[last]
+                rvec[j_mu] = rvec[last]
+                for r in range(n):
+                    wbuf[j_mu, r] = wbuf[last, r]
+                    p0buf[j_mu, r] = p0buf[last, r]
+                    p1buf[j_mu, r] = p1buf[last, r]
+                for b in range(m):
+                    sbuf[j_mu, b] = sbuf[last, b]
+                for b in range(m):
+                    sbuf[b, j_mu] = sbuf[b, last]
+                sbuf[j_mu, j_mu] = sbuf[last, last]
+            m -= 1
+        if viol > feas:
+            if m >= MAX_ACTIVE:
+                return False, m
+            _as_add(code, m, u_p0, u_p1, u_unc, hc, lo, up, n, dt, zoh, beta, codes, wbuf, p0buf, p1buf, sbuf, rvec)
+            m += 1
+    return False, m
+
+
+@numba.njit(cache=True)
+def _shift_active(codes, m, n):
+    """Receding horizon: constraints of step k become those of step k-1 (input 0 stays)."""
+    out = 0
+    r0 = n + 1
+    for a in range(m):
+        c = codes[a] >> 1
+        side = codes[a] & 1
+        kind, k = _kind(c, n)
+        if kind == 5:
+            continue
+        if kind == 0:
+            nk = 0 if k == 0 else k - 1
+            nc = nk
+        elif kind >= 6:
+            nc = c
+        else:
+            if k == 0:
+                continue
+            nc = c - 1
+        dup = False
+        for b in range(out):
+            if codes[b] >> 1 == nc:
+                dup = True
+                break
+        if not dup:
+            codes[out] = 2 * nc + side
+            out += 1
+    return out
+
+
+@numba.njit(cache=True)
+def _lead_term(cum, i, k, a_l, ks, a_part, n):
+    """``sum_j gain_lead[k, j] aseq_j`` from the running row sums ``cum[i, k, j] = sum_{j'<j} gain_lead[k, j']``."""
+    out = a_l * cum[i, k, ks]
+    if ks < n:
+        out += a_part * (cum[i, k, ks + 1] - cum[i, k, ks])
+    return out
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gain_lead, hinv_f, hinv_c,
+         mode, lower, upper, plan, aseq, W, act_codes, act_count, stats, sf, sw, ss, codes):
+    """Driver ``i``'s step; returns its path (QP: the backend must solve it)."""
+    n = plan.shape[1]
+    u_unc = sf[0, :n]
+    u_p0 = sf[1, :n]
+    u_p1 = sf[2, :n]
+    rvec = sf[3, :MAX_ACTIVE]
+    lam = sf[4, :MAX_ACTIVE]
+    dt = S[S_DT]
+    zoh = S[S_ZOH] > 0.5
+    use_acc = S[S_LEADACC] > 0.5
+    warm = S[S_WARM] > 0.5
+    r0 = n + 1
+    stats[i, ST_STEPS] += 1
+    v = v0[i]
+    up = u_prev[i]
+    c = P[i, C_TG]
+    x_min = P[i, X_MIN]
+    has_lead = gap[i] < np.inf
+    has_stop = stop_gap[i] < np.inf
+    # predicted lead accelerations: its measured *deceleration* held until it would stop
+    # (then the partial step that stops it, then 0); an accelerating lead is predicted at
+    # constant speed (conservative: predicted positions never run ahead of a braking or
+    # cruising lead). Zero unless enabled. The sequence is (a, ..., a, a_part, 0, ...):
+    # ks full steps; the gains use running row sums.
+    ks = 0
+    a_part = 0.0
+    a_l = min(a_lead[i], 0.0) if (has_lead and use_acc) else 0.0
+    if a_l != 0.0:
+        vl = v_lead[i]
+        ks = n
+        for k in range(n):
+            if vl + a_l * dt < 0.0:
+                ks = k
+                a_part = -vl / dt
+                break
+            vl += a_l * dt
+    for k in range(n):
+        aseq[i, k] = a_l if k < ks else (a_part if k == ks else 0.0)
+    # --- required deceleration over the real targets (Eq. 10); R: gap, or distance to the stop
+    areq = np.inf
+    dR = np.inf
+    v_t = np.inf  # speed of the most demanding real target
+    if has_lead:
+        a = required_decel(gap[i], v_lead[i] - v)
+        if a < areq:
+            areq, dR, v_t = a, v_lead[i] - v, v_lead[i]
+    if has_stop:
+        a = required_decel(stop_gap[i], -v)
+        if a < areq:
+            areq, dR, v_t = a, -v, 0.0
+    # --- mode logic (before solving); decelerating modes are 'BRAKE' until labelled
+    m = mode[i]
+    if m == ACCELERATE:
+        if areq <= P[i, A_REQ_SAIL]:
+            m = BRAKE
+    elif m == SAIL or m == BRAKE:
+        # back to the throttle only if the target really pulls away, or, sailing above
+        # creep speed, behind a target that itself moves faster than creep speed
+        creep = S[S_CREEP]
+        if areq > P[i, A_REQ_SAIL] + S[S_HYST] and (dR > S[S_PULL] or (m == SAIL and v > creep and v_t > creep)):
+            m = ACCELERATE
+        else:
+            m = BRAKE
+    # EMERGENCY screen (kinematic, against every real target predicted at constant speed
+    # like the QP's gap rows): if even braking at a_min at once cannot keep x_min, the
+    # comfortable QP is infeasible, so go straight to EMERGENCY; an emergency ends only
+    # when braking at 80 % of a_min would do (hysteresis), then the QP decides.
+    a_need = 0.0
+    if has_lead and v > v_lead[i]:
+        a_need = min(a_need, -((v - v_lead[i]) ** 2) / (2.0 * max(gap[i] - x_min, 1e-3)))
+    if has_lead and a_l < 0.0 and v > 0.0:
+        # a braking lead (predicted): stop within the gap plus the lead's own stopping distance
+        room = gap[i] - x_min + v_lead[i] * v_lead[i] / (-2.0 * a_l)
+        a_need = min(a_need, -v * v / (2.0 * max(room, 1e-3)))
+    if has_stop and v > 0.0:
+        a_need = min(a_need, -v * v / (2.0 * max(stop_gap[i], 1e-3)))
+    W[i, W_ANEED] = a_need
+    if a_need < P[i, A_MIN] * (0.8 if m == EMERGENCY else 1.0):
+        m = EMERGENCY
+    elif m == EMERGENCY:
+        m = BRAKE
+    # --- controlling law: the nearer real target's; in ACCELERATE the free-driving law
+    # instead if it asks for less acceleration (as in ACC and IDM; compared on the
+    # unconstrained first input). Decelerating, the driver deals with its target.
+    target = CRUISE
+    th0, th1 = 0.0, P[i, V_DES] - v
+    best = gain_c[i, 0, 0] * th1 + gain_c[i, 0, 1] * up
+    t_real = -1
+    if has_lead:
+        t_real, t0, t1 = LEAD, gap[i] - x_min - c * v, v_lead[i] - v
+    if has_stop and (not has_lead or stop_gap[i] + x_min < gap[i]):
+        t_real, t0, t1 = STOP, stop_gap[i] - c * v, -v
+    if t_real >= 0:
+        u0 = gain_f[i, 0, 0] * t0 + gain_f[i, 0, 1] * t1 + gain_f[i, 0, 2] * up
+        if t_real == LEAD and use_acc:
+            for j in range(n):
+                u0 += gain_lead[i, 0, j] * aseq[i, j]
+        if u0 <= best or m != ACCELERATE:
+            target, th0, th1 = t_real, t0, t1
+    lower0, upper0 = fill_bounds(P, S, i, m, v, up, a_need, lower, upper)
+    # --- gap rows: every real target, constant speed (or predicted lead accelerations)
+    dvl = 0.0
+    dpl = 0.0
+    for k in range(n):
+        ub = INF
+        tk = (k + 1) * dt
+        if has_lead:
+            a = aseq[i, k]
+            dpl += dt * dvl + (0.5 * dt * dt * a if zoh else 0.0)
+            dvl += dt * a
+            ub = gap[i] - x_min + tk * (v_lead[i] - v) + dpl
+        if has_stop:
+            ub = min(ub, stop_gap[i] - tk * v)
+        lower[i, r0 + k] = -INF
+        upper[i, r0 + k] = ub
+    # --- terminal stoppability rows: dp_N + beta_j dv_N <= gap_N(free) - x_min - alpha_j - beta_j w_N(free)
+    tn = n * dt
+    for j in range(K_TERM):
+        al = P[i, C_ALPHA + j]
+        be = P[i, C_BETA + j]
+        cl = 5 * n + j
+        cs = 5 * n + K_TERM + j
+        lower[i, cl] = -INF
+        lower[i, cs] = -INF
+        upper[i, cl] = INF
+        upper[i, cs] = INF
+        if has_lead:
+            vln = v_lead[i] + dvl
+            upper[i, cl] = gap[i] + tn * v_lead[i] + dpl - tn * v - x_min - al - be * (v - vln)
+        if has_stop:
+            upper[i, cs] = stop_gap[i] - tn * v - al - be * v
+    W[i, W_TARGET] = target
+    W[i, W_AREQ] = areq
+    W[i, W_DR] = dR
+    W[i, W_TH0] = th0
+    W[i, W_TH1] = th1
+    W[i, W_LOWER0] = lower0
+    W[i, W_UPPER0] = upper0
+    W[i, W_MODE_PRE] = m
+    W[i, W_SLACK] = 0.0
+    W[i, W_ITER] = 0.0
+    # --- stopping inside this step (or standing) under the mode's least braking: no QP
+    if v + dt * upper0 <= 0.0:
+        # ... unless that least braking would roll past x_min: then the exact stop
+        room = np.inf
+        if has_lead:
+            room = gap[i] - x_min
+        if has_stop:
+            room = min(room, stop_gap[i])
+        if v > 0.0 and v * v > -2.0 * upper0 * room:
+            a_lo = vehicle_limits(P, i, v)[1]
+            upper0 = max(-v * v / (2.0 * max(room, 1e-9)), a_lo)
+            m = BRAKE
+        W[i, W_U0] = upper0
+        W[i, W_PATH] = HOLD
+        W[i, W_VIOL] = 0.0
+        # standing still: brake held; stopping inside the step at the least braking: sailing
+        mode[i] = BRAKE if v <= 0.0 else (SAIL if m == BRAKE else m)
+        for k in range(n):
+            plan[i, k] = 0.0
+        plan[i, 0] = upper0
+        act_count[i] = 0
+        stats[i, ST_HOLD] += 1
+        return HOLD
+    # --- unconstrained law
+    for k in range(n):
+        if target == CRUISE:
+            z = gain_c[i, k, 0] * th1 + gain_c[i, k, 1] * up
+        else:
+            z = gain_f[i, k, 0] * th0 + gain_f[i, k, 1] * th1 + gain_f[i, k, 2] * up
+            if target == LEAD and a_l != 0.0:
+                z += _lead_term(gain_lead, i, k, a_l, ks, a_part, n)
+        u_unc[k] = z
+    beta = P[i, C_BETA:C_BETA + K_TERM]
+    viol, _ = _scan(u_unc, lower[i], upper[i], n, dt, zoh, codes, 0, beta)
+    W[i, W_VIOL] = viol
+    path = -1
+    if viol <= S[S_FEAS]:
+        for k in range(n):
+            plan[i, k] = u_unc[k]
+        act_count[i] = 0
+        path = FAST
+    elif warm:
+        # --- warm active set: last step's, shifted along the horizon
+        m0 = min(act_count[i], MAX_ACTIVE)
+        for a in range(m0):
+            codes[a] = act_codes[i, a]
+        m0 = _shift_active(codes, m0, n)
+        hc = hinv_c[i] if target == CRUISE else hinv_f[i]
+        ok, ma = _active_set_solve(u_unc, hc, lower[i], upper[i], codes, m0, n, dt, zoh, S[S_FEAS],
+                                   S[S_SLACK_LIN], beta, plan[i], sw[0], sw[1], sw[2], ss[0], ss[1], rvec, lam,
+                                   u_p0, u_p1)
+        # remember the working set either way: the solution's, or a warm start for the backend
+        for a in range(ma):
+            act_codes[i, a] = codes[a]
+        act_count[i] = ma
+        if ok:
+            path = ACTIVE_SET
+    if path >= 0:
+        W[i, W_U0] = min(max(plan[i, 0], lower0), upper0)
+        W[i, W_PATH] = path
+        stats[i, ST_FAST if path == FAST else ST_ACTIVE_SET] += 1
+        if m == ACCELERATE or m == EMERGENCY:
+            mode[i] = m
+            if m == EMERGENCY:
+                stats[i, ST_EMERGENCY] += 1
+        else:
+            mode[i] = SAIL if plan[i, 0] >= upper0 - 1e-7 else BRAKE
+    else:
+        W[i, W_U0] = np.nan
+        W[i, W_PATH] = QP
+        mode[i] = m
+    return path
+
+
+def _make_prepare(parallel):
+    rng = numba.prange if parallel else range
+
+    def prepare(P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, G, GL, H, B, PA, W, I, SF, SC):
+        # few arguments on purpose: numba's dispatch costs ~0.1 us per argument
+        err = _check_inputs(v0, u_prev, gap, v_lead, a_lead, stop_gap)
+        if err != 0:
+            return -err
+        nd = v0.shape[0]
+        n = PA.shape[2]
+        width = max(n, MAX_ACTIVE + 1)
+        o1 = 5 * width
+        o2 = o1 + 3 * MAX_ACTIVE * n
+        o3 = o2 + 2 * MAX_ACTIVE * MAX_ACTIVE
+        gain_f = G[:, 0]
+        gain_c = G[:, 1, :, 1:]
+        hinv_f = H[:, 0]
+        hinv_c = H[:, 1]
+        lower = B[:, 0]
+        upper = B[:, 1]
+        plan = PA[:, 0]
+        aseq = PA[:, 1]
+        mode = I[:, I_MODE]
+        act_count = I[:, I_COUNT]
+        stats = I[:, I_STATS:I_STATS + N_STATS]
+        act_codes = I[:, I_CODES:]
+        for i in rng(nd):
+            t = numba.get_thread_id() if parallel else 0  # scratch: one set per thread
+            _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, GL, hinv_f, hinv_c,
+                 mode, lower, upper, plan, aseq, W, act_codes, act_count, stats,
+                 SF[t, :o1].reshape((5, width)), SF[t, o1:o2].reshape((3, MAX_ACTIVE, n)),
+                 SF[t, o2:o3].reshape((2, MAX_ACTIVE, MAX_ACTIVE)), SC[t])
+        n_hard = 0
+        for i in range(nd):
+            if W[i, W_PATH] == QP:
+                I[n_hard, I_HARD] = i
+                n_hard += 1
+        return n_hard
+
+    prepare.__doc__ = """One step for every driver.
+
+    Returns ``-code`` for invalid inputs (nothing written), else the number of drivers
+    whose QP the warm active-set solver could not settle (their indices in ``I[:, I_HARD]``):
+    the caller solves those with the backend. Arrays (``n`` drivers, ``N`` steps, ``M``
+    bounds): ``G`` (n, 2, N, 3) follow/cruise gains; ``GL`` lead-acceleration gain sums;
+    ``H`` (n, 2, 2, N, N) follow/cruise H^-1 column sums; ``B`` (n, 2, M) lower/upper
+    bounds; ``PA`` (n, 2, N) plan and predicted lead accelerations; ``W`` (n, N_WORK);
+    ``I`` (n, I_CODES + MAX_ACTIVE) int state; ``SF``/``SC`` per-thread scratch.
+    """
+    return prepare
+
+
+prepare = numba.njit(cache=True, error_model="numpy")(_make_prepare(False))
+prepare_parallel = numba.njit(cache=True, error_model="numpy", parallel=True)(_make_prepare(True))
+PARALLEL_MIN_BATCH = 128  # below this many drivers the thread pool costs more than it saves
+# int state columns
+I_MODE, I_COUNT, I_HARD = 0, 1, 2
+I_STATS = 3
+I_CODES = I_STATS + N_STATS
+
+
+def scratch(n_steps: int, parallel: bool):
+    """Per-thread work arrays for :func:`prepare`: floats ``SF`` and ints ``SC``."""
+    rows = numba.config.NUMBA_NUM_THREADS if parallel else 1
+    width = max(n_steps, MAX_ACTIVE + 1)
+    size = 5 * width + 3 * MAX_ACTIVE * n_steps + 2 * MAX_ACTIVE * MAX_ACTIVE
+    return np.zeros((rows, size)), np.zeros((rows, MAX_ACTIVE + 1), dtype=np.int64)
+
+
+@numba.njit(cache=True)
+def store_active(i, lam, tol, n, act_codes, act_count):
+    """Remember the active set of a backend solution (lam > 0: upper, < 0: lower bound)."""
+    m = 0
+    for c in range(lam.shape[0]):
+        if c == n:
+            continue
+        if abs(lam[c]) > tol and m < MAX_ACTIVE:
+            act_codes[i, m] = 2 * c + (1 if lam[c] > 0 else 0)
+            m += 1
+    act_count[i] = m

@@ -1,0 +1,545 @@
+"""The MPC human-like driver of paper 001 (Section 3 and 4.4; SPEC section 3).
+
+Each step, every driver solves the condensed QP of :mod:`acc_gym.drivers.qp` and applies
+the first planned acceleration. Decisions this module makes where the paper is silent
+(each is a parameter or a setting, and is tested):
+
+Targets
+    A driver has up to three candidate targets: the vehicle ahead (if within range), a
+    **virtual stopped vehicle** whose rear is ``x_min`` beyond a stop position (so the
+    front bumper stops at the position), and a **virtual free-driving target** moving at
+    ``v_desired``. The free-driving law is the same QP with ``q1 = 0`` (only the speed
+    error is penalised): following a virtual vehicle with a distance error would make the
+    driver overshoot its desired speed to "catch up". The nearer real target's law
+    controls the cost; in ACCELERATE the free-driving law controls instead when it asks
+    for less acceleration (compared on the unconstrained first input, as ACC and IDM take
+    the minimum of their free and interaction terms), so a driver does not chase a fast
+    or distant vehicle beyond its desired speed. In the decelerating modes the driver
+    deals with the target that made it decelerate. The **gap and terminal constraints
+    hold against every real target** whichever law controls.
+Spacing policy
+    ``e_x = gap - x_min - c_TG v``: the paper's Eq. (4) with the standstill distance
+    ``x_min`` added, so that the unconstrained equilibrium at standstill is the minimum
+    gap rather than a gap of zero held only by the constraint.
+Lead prediction
+    The paper assumes the target keeps its speed over the horizon. Here the measured
+    deceleration of the vehicle ahead is held until that vehicle would stop (an
+    accelerating vehicle is predicted at constant speed, which is conservative)
+    (``MPCSettings(use_lead_accel=False)`` restores the paper's assumption). The paper
+    itself notes the lead's acceleration should be considered for sudden speed changes;
+    with the constant-speed assumption every Table 4 driver behind a lead braking at
+    -2 m/s^2 to a stop under-brakes step after step and ends in repeated emergency
+    braking below x_min, while with it they follow at their own a_min without an
+    emergency (measured with ``acc-gym demo``'s scenario).
+Discretisation
+    Exact zero-order hold (the vehicle's own integration) by default; the paper's Euler
+    form is ``MPCSettings(discretisation="euler")``. Terminal weight: the Riccati solution.
+Modes (paper Figure 9)
+    ``ACCELERATE``: ``u_0`` in ``[a_sail, a_max]``. Decelerating: ``u_0`` in
+    ``[a_min, a_sail]``, labelled ``SAIL`` while the optimum sits at its upper bound
+    (pedals released) and ``BRAKE`` below it. ``EMERGENCY``: ``u_0`` down to the
+    vehicle's braking limit with the emergency jerk. The mode restricts the current
+    input; the rest of the plan may use the driver's whole range ``[a_min, a_max]``
+    (a human in the sailing phase anticipates braking later).
+
+    * ACCELERATE -> decelerating when the required deceleration ``a_req`` (Eq. 10) to
+      the most demanding real target is ``<= a_req_sail``. ``R`` is the gap to the
+      vehicle ahead, or the distance to the stop position (the paper's data definitions).
+    * decelerating -> ACCELERATE only when ``a_req > a_req_sail + hysteresis`` **and**
+      the target is really pulling away (``dR > pull_away_speed``), or, from SAIL, above
+      ``creep_speed``. The literal rule would re-accelerate while still closing on a
+      stopped vehicle at creep speed, because ``a_req -> 0`` as the speed does.
+    * Escalation: if the QP needs slack (the gap or speed constraint cannot hold within
+      the mode's bounds), an ACCELERATE driver is re-solved decelerating, and a
+      decelerating one in ``EMERGENCY``; an emergency ends on the first step the
+      comfortable decelerating QP needs no slack.
+Jerk (humans bound it)
+    ``|u_k - u_{k-1}| <= jerk_max * dt`` over the whole plan, from the acceleration
+    actually applied last step. A mode switch whose range excludes the current
+    acceleration **ramps** towards it at that rate instead of jumping. In ``EMERGENCY``,
+    and when releasing braking harder than ``a_min``, the rate is ``jerk_emergency``.
+Standstill
+    A driver that would stop inside the step under its mode's least braking is given
+    that input without a QP (it stops there; at standstill the brakes hold: ``BRAKE``).
+Failures
+    Inputs are checked before any solve (``ValueError`` naming the field). A backend
+    failure, iteration cap or non-finite result never raises: the driver falls back to
+    the deceleration that stops it behind its target at ``x_min`` (or the previous plan,
+    whichever is lower), limited to the vehicle, and the fallback is counted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+from enum import IntEnum
+
+import numpy as np
+
+from acc_gym._validation import check_finite
+from acc_gym.drivers import _mpc_kernel as K
+from acc_gym.drivers.base import Observation
+from acc_gym.drivers.qp import K_TERM, Horizon, condensed_qp, make_backend, terminal_chords
+from acc_gym.vehicle import VehicleParams, accel_lower
+
+
+class Mode(IntEnum):
+    """Driving mode of an MPC driver (visible in ``driver.mode`` and ``info["mode"]``)."""
+
+    ACCELERATE = K.ACCELERATE
+    SAIL = K.SAIL
+    BRAKE = K.BRAKE
+    EMERGENCY = K.EMERGENCY
+
+
+class Target(IntEnum):
+    """Which law controls the cost this step."""
+
+    LEAD = K.LEAD
+    STOP = K.STOP
+    CRUISE = K.CRUISE
+
+
+class SolvePath(IntEnum):
+    """How the step's input was obtained (``info["path"]``)."""
+
+    UNCONSTRAINED = K.FAST  # the unconstrained law, checked against every constraint: exact
+    ACTIVE_SET = K.ACTIVE_SET  # last step's active set, corrected and KKT-verified: exact
+    QP = K.QP  # the backend solved the QP
+    HOLD = K.HOLD  # standing or stopping inside the step: no QP needed
+    FALLBACK = K.FALLBACK  # the backend failed; safe fallback used
+
+
+_PARAM_COLUMNS = ("a_max", "a_min", "a_req_sail", "a_sail", "c_tg", "x_min", "v_desired", "v_max",
+                  "jerk_max", "jerk_emergency")
+assert _PARAM_COLUMNS.index("jerk_emergency") == K.JERK_EM
+
+
+@dataclass(frozen=True)
+class MPCDriverParams:
+    """Parameters of one MPC driver or, with array fields of shape ``(n,)``, of ``n`` drivers.
+
+    Defaults are driver #57 of paper 001's Table 4 with a 1.5 s time gap.
+    """
+
+    a_max: float | np.ndarray = 2.0  # [m/s^2] largest acceleration the driver uses
+    a_min: float | np.ndarray = -2.5  # [m/s^2] hardest braking outside emergencies
+    a_req_sail: float | np.ndarray = -0.5  # [m/s^2] required deceleration that starts sailing
+    a_sail: float | np.ndarray = -0.1  # [m/s^2] deceleration with the pedals released
+    q1: float | np.ndarray = 5.0  # [-] weight of the distance error
+    r1: float | np.ndarray = 45.0  # [-] weight of the acceleration
+    q2: float | np.ndarray = 1.0  # [-] weight of the speed error (the paper fixes it at 1)
+    c_tg: float | np.ndarray = 1.5  # [s] constant time gap
+    x_min: float | np.ndarray = 2.5  # [m] minimum (standstill) gap
+    v_desired: float | np.ndarray = 25.0  # [m/s] free-driving speed
+    v_max: float | np.ndarray | None = None  # [m/s] speed never exceeded; None: v_desired
+    r_jerk: float | np.ndarray = 0.0  # [-] weight of (u_k - u_{k-1})^2 in the cost
+    jerk_max: float | np.ndarray = 2.5  # [m/s^3] bound on |du/dt| outside emergencies
+    jerk_emergency: float | np.ndarray = 50.0  # [m/s^3] bound on |du/dt| in emergencies
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if value is not None:
+                check_finite(f"MPCDriverParams.{f.name}", value)
+
+        def bad(mask, msg, value):
+            if np.any(mask):
+                raise ValueError(f"MPCDriverParams: {msg}, got {np.asarray(value)[np.broadcast_to(mask, np.shape(value))] if np.ndim(value) else value!r}")
+
+        arr = {f.name: np.asarray(getattr(self, f.name), float) for f in fields(self) if getattr(self, f.name) is not None}
+        bad(arr["a_max"] <= 0, "a_max must be > 0", self.a_max)
+        bad(arr["a_min"] >= 0, "a_min must be < 0", self.a_min)
+        bad(arr["a_sail"] >= 0, "a_sail must be < 0", self.a_sail)
+        bad(arr["a_req_sail"] >= 0, "a_req_sail must be < 0", self.a_req_sail)
+        bad(arr["a_sail"] <= arr["a_min"], "a_sail must be above a_min", self.a_sail)
+        bad(arr["q1"] < 0, "q1 must be >= 0", self.q1)
+        bad(arr["q2"] <= 0, "q2 must be > 0", self.q2)
+        bad(arr["r1"] <= 0, "r1 must be > 0", self.r1)
+        bad(arr["r_jerk"] < 0, "r_jerk must be >= 0", self.r_jerk)
+        bad(arr["c_tg"] < 0, "c_tg (time gap) must be >= 0", self.c_tg)
+        bad(arr["x_min"] <= 0, "x_min must be > 0", self.x_min)
+        bad(arr["v_desired"] <= 0, "v_desired must be > 0", self.v_desired)
+        bad(arr["jerk_max"] <= 0, "jerk_max must be > 0", self.jerk_max)
+        bad(arr["jerk_emergency"] < arr["jerk_max"], "jerk_emergency must be >= jerk_max", self.jerk_emergency)
+        if self.v_max is not None:
+            bad(arr["v_max"] < arr["v_desired"], "v_max must be >= v_desired", self.v_max)
+
+    @property
+    def speed_limit(self):
+        """``v_max`` or, when unset, ``v_desired`` [m/s]."""
+        return np.asarray(self.v_desired, float) if self.v_max is None else self.v_max
+
+    @property
+    def size(self) -> int:
+        """Batch size implied by the array fields (1 if all are scalars)."""
+        shape = np.broadcast_shapes(*(np.shape(getattr(self, f.name)) for f in fields(self)
+                                      if getattr(self, f.name) is not None))
+        return int(np.prod(shape)) if shape else 1
+
+    def broadcast(self, n: int) -> "MPCDriverParams":
+        """The same parameters as arrays of shape ``(n,)``."""
+        out = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            out[f.name] = None if value is None else np.broadcast_to(np.asarray(value, float), (n,)).copy()
+        return MPCDriverParams(**out)
+
+    def take(self, index) -> "MPCDriverParams":
+        n = self.size
+        b = self.broadcast(n)
+        return MPCDriverParams(**{f.name: (None if getattr(b, f.name) is None else getattr(b, f.name)[index])
+                                  for f in fields(b)})
+
+    def replace(self, **changes) -> "MPCDriverParams":
+        return replace(self, **changes)
+
+    @staticmethod
+    def stack(drivers: list["MPCDriverParams"]) -> "MPCDriverParams":
+        """Concatenate single or batched parameter sets into one batch."""
+        out = {}
+        for f in fields(MPCDriverParams):
+            if all(getattr(d, f.name) is None for d in drivers):
+                out[f.name] = None
+                continue
+            out[f.name] = np.concatenate([np.broadcast_to(np.asarray(d.speed_limit if f.name == "v_max" else getattr(d, f.name), float), (d.size,))
+                                          for d in drivers])
+        return MPCDriverParams(**out)
+
+
+# Paper 001, Table 4 (a_max, a_min, a_req_sail, a_sail, q1, r1). The paper gives no time
+# gap, minimum gap or desired speed for them: the defaults of MPCDriverParams apply.
+PRESETS: dict[str, dict[str, float]] = {
+    "#23": dict(a_max=2.0, a_min=-2.1, a_req_sail=-0.5, a_sail=-0.4, q1=3.0, r1=45.0),
+    "#57": dict(a_max=2.0, a_min=-2.5, a_req_sail=-0.5, a_sail=-0.1, q1=5.0, r1=45.0),
+    "#61": dict(a_max=2.0, a_min=-2.7, a_req_sail=-0.8, a_sail=-0.5, q1=2.0, r1=40.0),
+    "#13": dict(a_max=2.0, a_min=-1.0, a_req_sail=-0.5, a_sail=-0.1, q1=5.0, r1=40.0),
+}
+
+
+def preset(name: str, **overrides) -> MPCDriverParams:
+    """A Table 4 driver by name (``"#23"``, ``"#57"``, ``"#61"``, ``"#13"``; the ``#`` is optional)."""
+    key = name if name.startswith("#") else f"#{name}"
+    if key not in PRESETS:
+        raise ValueError(f"unknown MPC driver preset {name!r}; known: {sorted(PRESETS)}")
+    return MPCDriverParams(**{**PRESETS[key], **overrides})
+
+
+@dataclass(frozen=True)
+class MPCSettings:
+    """Numerical and behavioural settings shared by a batch of MPC drivers."""
+
+    dt: float = 0.2  # [s] sampling time (paper: 0.2 s)
+    horizon: int = 60  # [steps] N (paper: 12 s)
+    discretisation: str = "zoh"  # "zoh" (exact) or "euler" (paper)
+    backend: str = "daqp"  # "daqp", "proxsuite" or "qpsolvers:<solver>"
+    max_iter: int = 1000  # iteration cap of the backend
+    use_lead_accel: bool = True  # predict the lead with its measured acceleration (paper: False)
+    hysteresis: float = 0.2  # [m/s^2] a_req margin above a_req_sail to re-accelerate
+    creep_speed: float = 2.0  # [m/s] SAIL -> ACCELERATE only above this speed ...
+    pull_away_speed: float = 0.3  # [m/s] ... or when the target pulls away faster than this
+    feas_tol: float = 1e-7  # accept the unconstrained law if no constraint is violated by more
+    slack_tol: float = 1e-3  # [m or m/s] slack above this escalates the mode
+    slack_linear: float = 1e9  # exact-penalty weight of the slack (above any multiplier of a far target)
+    slack_quadratic: float = 1e4  # quadratic weight of the slack
+    warm_active_set: bool = True  # try last step's active set (KKT-verified) before the backend
+
+    def __post_init__(self) -> None:
+        Horizon(self.horizon, self.dt, self.discretisation)  # validates these three
+        make_backend_name_check(self.backend)
+        for name in ("max_iter",):
+            if int(getattr(self, name)) <= 0:
+                raise ValueError(f"MPCSettings.{name} must be > 0, got {getattr(self, name)!r}")
+        for name in ("hysteresis", "creep_speed", "pull_away_speed", "feas_tol", "slack_tol"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"MPCSettings.{name} must be >= 0, got {value!r}")
+        for name in ("slack_linear", "slack_quadratic"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"MPCSettings.{name} must be > 0, got {value!r}")
+
+    @property
+    def horizon_structure(self) -> Horizon:
+        return Horizon(self.horizon, self.dt, self.discretisation)
+
+
+def make_backend_name_check(name: str) -> None:
+    if name not in ("daqp", "proxsuite") and not name.startswith("qpsolvers:"):
+        raise ValueError(f"unknown QP backend {name!r}; use 'daqp', 'proxsuite' or 'qpsolvers:<solver>'")
+
+
+_FIELDS = ("v", "a", "gap", "v_lead", "a_lead", "stop_gap")
+_F64 = np.dtype(np.float64)
+_STAT_NAMES = ("steps", "unconstrained", "active_set", "qp", "hold", "fallback", "slack", "emergency")
+
+
+class MPCDriver:
+    """A batch of ``n`` MPC human-like drivers (one QP each per step).
+
+    ``act(obs)`` returns the desired accelerations ``(n,)`` [m/s^2]; ``mode`` holds each
+    driver's :class:`Mode`; ``info`` the last step's diagnostics (mode, target, a_req,
+    solve path, slack, backend iterations, the first input's bounds); ``stats`` running
+    counts per driver of steps, of each :class:`SolvePath`, of steps that needed slack
+    and of steps in EMERGENCY. The vehicle parameters give the acceleration envelope the
+    plan respects (``a_U(v)``, ``a_L(v)`` at the current speed).
+
+    Solving: the unconstrained law when it is feasible; else last step's active set,
+    shifted along the horizon and corrected by a few add/drop steps, accepted only when
+    the KKT conditions hold (so it is exact); else the backend (DAQP by default).
+    """
+
+    def __init__(self, params: MPCDriverParams | None = None, n: int | None = None,
+                 vehicle: VehicleParams | None = None, settings: MPCSettings | None = None):
+        params = params if params is not None else MPCDriverParams()
+        n = params.size if n is None else int(n)
+        if n < 1:
+            raise ValueError(f"n must be >= 1, got {n}")
+        self.n = n
+        self.params = params.broadcast(n)
+        self.vehicle = (vehicle if vehicle is not None else VehicleParams()).broadcast(n)
+        self.settings = settings if settings is not None else MPCSettings()
+        s = self.settings
+        self.horizon = s.horizon_structure
+        p = self.params
+        self._alpha, self._beta = terminal_chords(p.a_min, p.jerk_max, p.speed_limit)
+        self._P = np.ascontiguousarray(np.concatenate(
+            [np.stack([np.asarray(p.speed_limit if c == "v_max" else getattr(p, c), float) for c in _PARAM_COLUMNS], axis=1),
+             self.vehicle.as_matrix(n), self._alpha, self._beta], axis=1))
+        self._S = np.array([s.dt, 1.0 if s.discretisation == "zoh" else 0.0, s.hysteresis, s.creep_speed,
+                            s.pull_away_speed, s.feas_tol, 1.0 if s.use_lead_accel else 0.0, s.slack_linear,
+                            1.0 if s.warm_active_set else 0.0])
+        self._qp_follow = [condensed_qp(float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]),
+                                        self.horizon, s.slack_linear, s.slack_quadratic, float(p.r_jerk[i]))
+                           for i in range(n)]
+        self._qp_cruise = [condensed_qp(0.0, float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]),
+                                        self.horizon, s.slack_linear, s.slack_quadratic, float(p.r_jerk[i]))
+                           for i in range(n)]
+        N = self.horizon.n_steps
+        # kernel arrays (few, large: numba's dispatch cost grows with the argument count)
+        self._G = np.zeros((n, 2, N, 3))  # unconstrained laws: follow, cruise (theta = e_x, e_v, u_prev)
+        self._G[:, 0] = np.stack([q.gain for q in self._qp_follow])
+        self._G[:, 1, :, 1:] = np.stack([q.gain[:, 1:] for q in self._qp_cruise])
+        self._H = np.ascontiguousarray(np.stack([np.stack([f.hinv_sums, c.hinv_sums])
+                                                 for f, c in zip(self._qp_follow, self._qp_cruise)]))
+        # running row sums of the lead-acceleration gains (the predicted sequence is piecewise constant)
+        self._GL = (np.ascontiguousarray(np.stack([np.concatenate([np.zeros((N, 1)), np.cumsum(q.gain_lead, axis=1)], axis=1)
+                                                   for q in self._qp_follow]))
+                    if s.use_lead_accel else np.zeros((n, 1, 1)))
+        self._B = np.zeros((n, 2, self.horizon.n_bounds))
+        self._lower, self._upper = self._B[:, 0], self._B[:, 1]
+        self._PA = np.zeros((n, 2, N))
+        self._plan, self._aseq = self._PA[:, 0], self._PA[:, 1]
+        self._W = np.zeros((n, K.N_WORK))
+        self._I = np.zeros((n, K.I_CODES + K.MAX_ACTIVE), dtype=np.int64)
+        self.mode = self._I[:, K.I_MODE]
+        self._act_count = self._I[:, K.I_COUNT]
+        self._hard = self._I[:, K.I_HARD]
+        self._stats = self._I[:, K.I_STATS:K.I_STATS + K.N_STATS]
+        self._act_codes = self._I[:, K.I_CODES:]
+        self._parallel = n >= K.PARALLEL_MIN_BATCH
+        self._prepare = K.prepare_parallel if self._parallel else K.prepare
+        self._SF, self._SC = K.scratch(N, self._parallel)
+        self._inf = np.full(n, np.inf)
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        """Back to ACCELERATE with zeroed statistics; solvers restart cold."""
+        self._I[:] = 0  # modes (ACCELERATE = 0), working sets, statistics
+        self._PA[:] = 0.0
+        self._W[:] = 0.0
+        self._W[:, K.W_PATH] = -1
+        # backend workspaces survive a reset (their factorisations depend only on the
+        # driver), but every one restarts cold from the kernel's working set, so an
+        # episode never depends on the previous one
+        if not hasattr(self, "_backends"):
+            self._backends: dict = {}
+        self._last_used = {key: -2 for key in self._backends}
+        self._step = 0
+
+    def __getstate__(self):
+        state = self.__dict__.copy()
+        for view in ("_lower", "_upper", "_plan", "_aseq", "mode", "_act_count", "_hard", "_stats", "_act_codes"):
+            del state[view]  # views into the packed kernel arrays, re-made in __setstate__
+        state["_backends"] = {}  # solver workspaces are rebuilt after unpickling ...
+        state["_last_used"] = {}  # ... and start from the kernel's working set
+        return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self._lower, self._upper = self._B[:, 0], self._B[:, 1]
+        self._plan, self._aseq = self._PA[:, 0], self._PA[:, 1]
+        self.mode = self._I[:, K.I_MODE]
+        self._act_count = self._I[:, K.I_COUNT]
+        self._hard = self._I[:, K.I_HARD]
+        self._stats = self._I[:, K.I_STATS:K.I_STATS + K.N_STATS]
+        self._act_codes = self._I[:, K.I_CODES:]
+
+    @property
+    def stats(self) -> dict[str, np.ndarray]:
+        """Running counts per driver: steps, each solve path, slack steps, emergency steps."""
+        return {name: self._stats[:, j].copy() for j, name in enumerate(_STAT_NAMES)}
+
+    @property
+    def info(self) -> dict[str, np.ndarray]:
+        """Diagnostics of the last :meth:`act` call, arrays of shape ``(n,)``."""
+        W = self._W
+        return {
+            "mode": self.mode.copy(),
+            "target": W[:, K.W_TARGET].astype(np.int64),
+            "a_req": W[:, K.W_AREQ].copy(),
+            "path": W[:, K.W_PATH].astype(np.int64),
+            "slack": W[:, K.W_SLACK].copy(),
+            "iterations": W[:, K.W_ITER].astype(np.int64),
+            "lower0": W[:, K.W_LOWER0].copy(),
+            "upper0": W[:, K.W_UPPER0].copy(),
+            "fallbacks": self._stats[:, K.ST_FALLBACK].copy(),
+        }
+
+    def qp_data(self, i: int) -> dict:
+        """The QP driver ``i`` solved in the last step (after any escalation), for inspection
+        and cross-checks: ``hessian`` (N+1, N+1), ``q`` (N+1,), ``G`` (rows, N+1) and the
+        bounds ``lower``/``upper`` on ``(z, G z)`` (layout in :mod:`acc_gym.drivers.qp`)."""
+        W = self._W
+        target = int(W[i, K.W_TARGET])
+        qp = (self._qp_cruise if target == K.CRUISE else self._qp_follow)[i]
+        theta = np.array([W[i, K.W_TH0], W[i, K.W_TH1], self._u_prev[i]])
+        aseq = self._aseq[i] if (target == K.LEAD and self.settings.use_lead_accel) else None
+        return {"hessian": np.array(qp.hessian), "q": qp.linear_term(theta, aseq),
+                "G": self.horizon.constraint_matrix(self._beta[i]), "lower": self._lower[i].copy(),
+                "upper": self._upper[i].copy(), "path": int(W[i, K.W_PATH])}
+
+    @property
+    def plan(self) -> np.ndarray:
+        """The planned accelerations ``(n, N)`` of the last step [m/s^2]."""
+        return self._plan.copy()
+
+    # ------------------------------------------------------------------ step
+    def act(self, obs: Observation) -> np.ndarray:
+        """Desired accelerations ``(n,)`` [m/s^2] for the observed snapshot.
+
+        Raises ``ValueError`` naming the field for a wrong shape, NaN, a negative speed,
+        or an infinite speed or acceleration; never raises once the inputs are valid.
+        """
+        n = self.n
+        arrays = []
+        shape = (n,)
+        for name in _FIELDS:
+            value = getattr(obs, name)
+            if value is None:
+                value = self._inf
+            elif not (value.__class__ is np.ndarray and value.dtype is _F64 and value.shape == shape):
+                value = np.asarray(value, dtype=float)
+                if value.shape != shape:
+                    raise ValueError(f"observation field {name!r} must have shape ({n},), got {value.shape}")
+            arrays.append(value)
+        W = self._W
+        n_hard = self._prepare(self._P, self._S, *arrays, self._G, self._GL, self._H, self._B, self._PA, W,
+                               self._I, self._SF, self._SC)
+        if n_hard < 0:
+            name = _FIELDS[-n_hard - 1]
+            raise ValueError(f"observation.{name} is invalid for an MPC driver: {arrays[-n_hard - 1]!r} "
+                             f"(speeds must be finite and >= 0, accelerations finite, gaps not NaN or -inf)")
+        self._u_prev = arrays[1]
+        for j in range(n_hard):
+            self._solve_one(int(self._hard[j]), arrays)
+        self._step += 1
+        return W[:, K.W_U0].copy()
+
+    def _backend(self, i: int, cruise: bool, emergency: bool = False):
+        # one workspace per driver, law and bound regime (emergency bounds differ a lot)
+        key = (i, cruise, emergency)
+        b = self._backends.get(key)
+        if b is None:
+            qp = (self._qp_cruise if cruise else self._qp_follow)[i]
+            g = self.horizon.constraint_matrix(self._beta[i])
+            b = self._backends[key] = make_backend(self.settings.backend, qp, g, self.settings.max_iter)
+        return b
+
+    def _solve_backend(self, i: int, key_cruise: bool, emergency: bool, q: np.ndarray):
+        """Solve with the backend: warm from its own last solve if that was the previous
+        step, else from the kernel's working set."""
+        key = (i, key_cruise, emergency)
+        backend = self._backend(*key)
+        fresh = self._last_used.get(key, -2) == self._step - 1
+        start = None if fresh else self._act_codes[i, : self._act_count[i]]
+        self._last_used[key] = self._step
+        return backend, backend.solve(q, self._lower[i], self._upper[i], start)
+
+    def _solve_one(self, i: int, arrays) -> None:
+        """Backend solve for driver ``i``, with mode escalation on slack and a counted fallback."""
+        W = self._W
+        s = self.settings
+        N = self.horizon.n_steps
+        v, u_prev = float(arrays[0][i]), float(arrays[1][i])
+        target = int(W[i, K.W_TARGET])
+        cruise = target == K.CRUISE
+        qp = (self._qp_cruise if cruise else self._qp_follow)[i]
+        theta = np.array([W[i, K.W_TH0], W[i, K.W_TH1], u_prev])
+        aseq = self._aseq[i] if (target == K.LEAD and s.use_lead_accel) else None
+        q = qp.linear_term(theta, aseq)
+        m = int(W[i, K.W_MODE_PRE])
+        backend, res = self._solve_backend(i, cruise, m == K.EMERGENCY, q)
+        total_iter = res.iterations
+        # escalation while the QP needs slack: decelerating, then an emergency braking as hard
+        # as needed (a_need), then the vehicle's whole braking range (a_need = -inf)
+        a_need = W[i, K.W_ANEED]
+        escalate = {K.ACCELERATE: [(K.BRAKE, a_need), (K.EMERGENCY, a_need), (K.EMERGENCY, -np.inf)],
+                    K.EMERGENCY: [(K.EMERGENCY, -np.inf)]}.get(m, [(K.EMERGENCY, a_need), (K.EMERGENCY, -np.inf)])
+        while res.ok and res.z[N] > s.slack_tol and escalate:
+            m, a_need = escalate.pop(0)
+            lower0, upper0 = K.fill_bounds(self._P, self._S, i, m, v, u_prev, a_need, self._lower, self._upper)
+            W[i, K.W_LOWER0], W[i, K.W_UPPER0] = lower0, upper0
+            if v + s.dt * upper0 <= 0.0:  # stopping inside the step anyway
+                res = None
+                break
+            if res.duals is not None:
+                K.store_active(i, res.duals, 1e-10, N, self._act_codes, self._act_count)
+            backend, res = self._solve_backend(i, cruise, m == K.EMERGENCY, q)
+            total_iter += res.iterations
+        upper0 = W[i, K.W_UPPER0]
+        W[i, K.W_ITER] = total_iter
+        st = self._stats[i]
+        if res is None:
+            W[i, K.W_U0] = upper0
+            W[i, K.W_PATH] = K.HOLD
+            st[K.ST_HOLD] += 1
+            self.mode[i] = m if m == K.EMERGENCY else (K.BRAKE if v <= 0 else K.SAIL)
+            st[K.ST_EMERGENCY] += m == K.EMERGENCY
+            self._act_count[i] = 0
+            return
+        if res.ok:
+            z = res.z
+            u0 = min(max(z[0], W[i, K.W_LOWER0]), upper0)  # solver tolerance never leaves the box
+            self._plan[i] = z[:N]
+            W[i, K.W_SLACK] = z[N]
+            W[i, K.W_U0] = u0
+            st[K.ST_QP] += 1
+            st[K.ST_SLACK] += z[N] > s.slack_tol
+            if res.duals is not None:
+                K.store_active(i, res.duals, 1e-10, N, self._act_codes, self._act_count)
+            else:
+                self._act_count[i] = 0
+            if m == K.EMERGENCY or m == K.ACCELERATE:
+                self.mode[i] = m
+                st[K.ST_EMERGENCY] += m == K.EMERGENCY
+            else:
+                self.mode[i] = K.SAIL if u0 >= upper0 - 1e-6 else K.BRAKE
+            return
+        # --- fallback: stop behind the most demanding real target at x_min, or keep the plan
+        W[i, K.W_PATH] = K.FALLBACK
+        st[K.ST_FALLBACK] += 1
+        self._act_count[i] = 0
+        x_min = self._P[i, K.X_MIN]
+        a_need = np.inf
+        gap, v_lead, stop_gap = arrays[2][i], arrays[3][i], arrays[5][i]
+        for R, vt in ((gap, v_lead), (stop_gap + x_min, 0.0)):
+            if np.isfinite(R) and v > vt:
+                a_need = min(a_need, -(v - vt) ** 2 / (2.0 * max(R - x_min, 0.05)))
+        planned = self._plan[i, 1]
+        a_lo = float(accel_lower(v, self.vehicle.take(i)))
+        u0 = float(np.clip(min(planned, a_need), a_lo, max(upper0, a_lo)))
+        W[i, K.W_U0] = u0
+        self._plan[i, :-1] = self._plan[i, 1:]
+        self.mode[i] = K.EMERGENCY if u0 < self._P[i, K.A_MIN] else (K.BRAKE if u0 < 0 else K.ACCELERATE)
+        st[K.ST_EMERGENCY] += self.mode[i] == K.EMERGENCY

@@ -1,0 +1,489 @@
+"""The condensed MPC quadratic program of the human-like driver, and its solvers.
+
+Formulation (paper 001 Eqs. 4-6 and 11, condensed once per driver configuration)
+---------------------------------------------------------------------------------
+Decision vector ``z = (u_0 .. u_{N-1}, s)``: the planned accelerations [m/s^2] and one
+slack ``s >= 0`` [m, m/s] shared by every state constraint. The ego's predicted speed
+and position relative to the free response are linear in ``u``::
+
+    v_k - v_0            = (Tv u)_k   = dt * sum_{j<k} u_j
+    p_k - k dt v_0       = (Tp u)_k   (exact zero-order hold: the same model the vehicle
+                                        integrates; ``discretisation="euler"`` drops the
+                                        dt^2/2 term as the paper's Euler form does)
+
+The errors of Eq. (4) with the constant-time-gap policy and the standstill distance
+``d0`` (see :mod:`acc_gym.drivers.mpc`) are ``e_x,k = gap_k - d0 - c_TG v_k`` and
+``e_v,k = v_L,k - v_k``; with a target moving at constant speed their free response is
+``(e_x0 + k dt e_v0, e_v0)``, so the linear term of the QP is ``F @ theta`` with
+``theta = (e_x0, e_v0, u_prev)``. Cost: ``sum_{k=1}^{N-1} q1 e_x^2 + q2 e_v^2 + e_N' P e_N +
+sum_k r1 u_k^2 + r_jerk (u_k - u_{k-1})^2 + rho1 s + rho2 s^2`` (``u_{-1} = u_prev``, the
+acceleration applied last step), with ``P`` the discrete algebraic Riccati solution of
+the paper's cost (so the 12 s horizon approximates the infinite-horizon law).
+
+Constraints (all rows are the same for every driver; only their bounds change):
+
+* box: ``lo_k <= u_k <= hi_k`` (mode, ramp and vehicle limits, set by the driver), ``s >= 0``;
+* gap:  ``gap_k + s >= x_min``                      (k = 1..N)
+* speed: ``v_k + s >= 0`` and ``v_k - s <= v_max``   (k = 1..N)
+* rate: ``|u_k - u_{k-1}| <= r``                      (k = 1..N-1; k = 0 is in the box)
+* terminal stoppability, per real target (vehicle ahead, stop position): at the end
+  of the horizon the driver must still be able to shed its closing speed
+  ``w_N = v_N - v_target`` with its own braking ``b = -a_min`` reached at ``jerk_max``:
+  ``gap_N - s >= x_min + f(w_N)``, ``f(w) = w^2 / (2b) + w b / (2 jerk_max)``. ``f`` is
+  convex, so ``K_TERM`` chords of it over ``[0, v_max]`` (linear rows, above ``f``)
+  give a sufficient linear condition. Without it a 12 s plan that does not contain the
+  whole stop (30 m/s at -2 m/s^2 takes 15 s) can end committed to a collision that the
+  next step's longer view cannot avoid comfortably.
+
+Solving
+-------
+On most steps no constraint is active and the optimum is the unconstrained linear law
+``u = Z @ theta`` (``s = 0``), exact; the driver kernel checks it against every
+constraint with a few recurrences, batched over drivers. The remaining steps
+go to an exact QP backend kept warm between steps: DAQP (a dual active-set solver,
+default), ProxQP from proxsuite, or any qpsolvers backend (no workspace; for
+cross-checks). Backends never raise: a failure is returned as ``ok=False`` and the
+driver falls back (counted).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+INF = 1e30  # "no bound" for the backends
+
+# Default slack penalties: linear (exact-penalty) and quadratic weights of s.
+SLACK_LINEAR = 1e9
+SLACK_QUADRATIC = 1e4
+
+
+@dataclass(frozen=True)
+class Horizon:
+    """Prediction structure shared by every driver with the same ``(N, dt, discretisation)``."""
+
+    n_steps: int = 60  # N
+    dt: float = 0.2  # [s]
+    discretisation: str = "zoh"
+
+    def __post_init__(self) -> None:
+        if int(self.n_steps) != self.n_steps or self.n_steps < 2:
+            raise ValueError(f"horizon n_steps must be an integer >= 2, got {self.n_steps!r}")
+        if not (np.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(f"horizon dt must be > 0, got {self.dt!r}")
+        if self.discretisation not in ("zoh", "euler"):
+            raise ValueError(f"discretisation must be 'zoh' or 'euler', got {self.discretisation!r}")
+
+    @property
+    def n_rows(self) -> int:
+        """Number of general constraint rows (gap N, speed 2N, rate N-1, terminal 2 K_TERM)."""
+        return 4 * self.n_steps - 1 + 2 * K_TERM
+
+    @property
+    def n_bounds(self) -> int:
+        """Length of a driver's ``lower``/``upper`` vectors: N + 1 variables plus the rows."""
+        return self.n_steps + 1 + self.n_rows
+
+    def predict(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(Tv u, Tp u)`` for plans ``u`` shaped ``(..., N)``: speed and position offsets."""
+        dv = self.dt * np.cumsum(u, axis=-1)
+        dp = self.dt * (np.cumsum(dv, axis=-1) - dv)
+        if self.discretisation == "zoh":
+            dp = dp + 0.5 * self.dt * dv
+        return dv, dp
+
+    @property
+    def matrices(self) -> tuple[np.ndarray, np.ndarray]:
+        return _horizon_matrices(self)
+
+    def constraint_matrix(self, beta: np.ndarray) -> np.ndarray:
+        """General rows ``G`` ``(n_rows, N+1)``, columns ``(u, s)``, for chord slopes ``beta`` ``(K_TERM,)``."""
+        n = self.n_steps
+        tv, tp = self.matrices
+        beta = np.asarray(beta, dtype=float)
+        term = np.zeros((K_TERM, n + 1))
+        term[:, :n] = tp[-1] + beta[:, None] * tv[-1]
+        term[:, n] = -1.0
+        return np.vstack([_constraint_matrix(self), term, term])
+
+
+@lru_cache(maxsize=16)
+def _horizon_matrices(h: Horizon) -> tuple[np.ndarray, np.ndarray]:
+    tv, tp = h.predict(np.eye(h.n_steps))  # columns: response to a unit input at j
+    tv, tp = tv.T.copy(), tp.T.copy()
+    tv.setflags(write=False)
+    tp.setflags(write=False)
+    return tv, tp
+
+
+K_TERM = 4  # chords of the terminal stoppability condition, per real target
+
+
+def terminal_chords(a_min, jerk_max, v_max) -> tuple[np.ndarray, np.ndarray]:
+    """``(alpha, beta)`` ``(..., K_TERM)``: chords ``alpha_j + beta_j w`` of
+    ``f(w) = w^2/(2b) + w b/(2 jerk_max)`` (``b = -a_min``) on ``K_TERM`` equal intervals of ``[0, v_max]``."""
+    b = -np.asarray(a_min, dtype=float)[..., None]
+    jerk = np.asarray(jerk_max, dtype=float)[..., None]
+    w = np.asarray(v_max, dtype=float)[..., None] * np.arange(K_TERM + 1) / K_TERM
+    f = w * w / (2.0 * b) + w * b / (2.0 * jerk)
+    beta = np.diff(f, axis=-1) / np.diff(w, axis=-1)
+    alpha = f[..., :-1] - beta * w[..., :-1]
+    return alpha, beta
+
+
+@lru_cache(maxsize=16)
+def _constraint_matrix(h: Horizon) -> np.ndarray:
+    n = h.n_steps
+    tv, tp = h.matrices
+    g = np.zeros((4 * n - 1, n + 1))
+    g[0:n, :n] = tp
+    g[0:n, n] = -1.0
+    g[n:2 * n, :n] = -tv
+    g[n:2 * n, n] = -1.0
+    g[2 * n:3 * n, :n] = tv
+    g[2 * n:3 * n, n] = -1.0
+    idx = np.arange(n - 1)
+    g[3 * n + idx, idx + 1] = 1.0
+    g[3 * n + idx, idx] = -1.0
+    g.setflags(write=False)
+    return g
+
+
+def riccati_terminal(q1: float, q2: float, r1: float, c_tg: float, h: Horizon) -> np.ndarray:
+    """Terminal weight ``P``: the DARE solution for the error dynamics (Eq. 5, discretised)."""
+    dt = h.dt
+    if q1 == 0.0:
+        # Only e_v is penalised and it evolves on its own: scalar DARE, closed form.
+        b2 = dt * dt
+        p = (q2 * b2 + np.sqrt((q2 * b2) ** 2 + 4.0 * b2 * q2 * r1)) / (2.0 * b2)
+        return np.array([[0.0, 0.0], [0.0, p]])
+    from scipy.linalg import solve_discrete_are
+
+    a = np.array([[1.0, dt], [0.0, 1.0]])
+    bx = -(c_tg * dt + (0.5 * dt * dt if h.discretisation == "zoh" else 0.0))
+    b = np.array([[bx], [-dt]])
+    return solve_discrete_are(a, b, np.diag([q1, q2]), np.array([[r1]]))
+
+
+class CondensedQP:
+    """The QP of one driver configuration ``(q1, q2, r1, c_TG)``, condensed once.
+
+    Attributes (read-only arrays):
+
+    * ``hessian`` ``(N+1, N+1)``: ``0.5 z' H z`` with the slack block.
+    * ``f_theta`` ``(N, 3)``: linear term of ``u`` is ``f_theta @ theta``,
+      ``theta = (e_x0, e_v0, u_prev)``.
+    * ``f_lead`` ``(N, N)``: extra linear term ``f_lead @ a_lead_seq`` when the target's
+      predicted accelerations are used (zero sequence by default).
+    * ``gain`` ``(N, 3)`` and ``gain_lead`` ``(N, N)``: the unconstrained law
+      ``u = gain @ theta + gain_lead @ a_lead_seq``.
+    * ``hinv`` ``(N, N)``: the inverse of the input block of the Hessian, and
+      ``hinv_sums`` ``(2, N, N)`` its running column sums (plain and index-weighted),
+      from which the driver kernel's warm active-set solver forms ``H^-1 g`` of any
+      constraint row in O(N).
+    """
+
+    def __init__(self, q1: float, q2: float, r1: float, c_tg: float, horizon: Horizon,
+                 slack_linear: float = SLACK_LINEAR, slack_quadratic: float = SLACK_QUADRATIC,
+                 r_jerk: float = 0.0):
+        for name, value in (("q1", q1), ("q2", q2), ("c_tg", c_tg), ("r_jerk", r_jerk)):
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be >= 0, got {value!r}")
+        if not (np.isfinite(r1) and r1 > 0):
+            raise ValueError(f"r1 must be > 0, got {r1!r}")
+        self.q1, self.q2, self.r1, self.c_tg = float(q1), float(q2), float(r1), float(c_tg)
+        self.r_jerk = float(r_jerk)
+        self.horizon = horizon
+        self.slack_linear = float(slack_linear)
+        n = horizon.n_steps
+        tv, tp = horizon.matrices
+        # Error responses: e_x = free - (Tp + c Tv) u, e_v = free - Tv u; target: +Tp, +Tv.
+        m_ego = -np.vstack([tp + c_tg * tv, tv])  # (2N, N)
+        m_lead = np.vstack([tp, tv])  # (2N, N)
+        k = np.arange(1, n + 1) * horizon.dt
+        s_theta = np.zeros((2 * n, 2))
+        s_theta[:n, 0] = 1.0
+        s_theta[:n, 1] = k
+        s_theta[n:, 1] = 1.0
+        w = np.zeros(2 * n)
+        w[: n - 1] = q1
+        w[n: 2 * n - 1] = q2
+        W = np.diag(w)
+        self.terminal = riccati_terminal(q1, q2, r1, c_tg, horizon)
+        W[n - 1, n - 1] = self.terminal[0, 0]
+        W[2 * n - 1, 2 * n - 1] = self.terminal[1, 1]
+        W[n - 1, 2 * n - 1] = W[2 * n - 1, n - 1] = self.terminal[0, 1]
+        mw = m_ego.T @ W
+        diff = np.eye(n) - np.eye(n, k=-1)  # (D u)_k = u_k - u_{k-1}, u_{-1} = u_prev
+        huu = 2.0 * (mw @ m_ego + r1 * np.eye(n) + r_jerk * diff.T @ diff)
+        huu = 0.5 * (huu + huu.T)
+        self.f_theta = np.zeros((n, 3))
+        self.f_theta[:, :2] = 2.0 * mw @ s_theta
+        self.f_theta[0, 2] = -2.0 * r_jerk
+        self.f_lead = 2.0 * mw @ m_lead
+        chol = np.linalg.cholesky(huu)
+        hinv = np.linalg.inv(huu)
+        self.hinv = hinv
+        # column sums for the driver kernel: [sum_{j<=k} H^-1[:, j], sum_{j<=k} j H^-1[:, j]]
+        self.hinv_sums = np.stack([np.cumsum(hinv, axis=1), np.cumsum(hinv * np.arange(n), axis=1)])
+        self.gain = -hinv @ self.f_theta
+        self.gain_lead = -hinv @ self.f_lead
+        self.hessian = np.zeros((n + 1, n + 1))
+        self.hessian[:n, :n] = huu
+        self.hessian[n, n] = 2.0 * slack_quadratic
+        self._chol = chol
+        for arr in (self.f_theta, self.f_lead, self.gain, self.gain_lead, self.hessian, self.hinv, self.hinv_sums):
+            arr.setflags(write=False)
+
+    @property
+    def key(self) -> tuple:
+        return (self.q1, self.q2, self.r1, self.c_tg, self.horizon, self.slack_linear,
+                float(self.hessian[-1, -1]), self.r_jerk)
+
+    def linear_term(self, theta: np.ndarray, a_lead_seq: np.ndarray | None = None) -> np.ndarray:
+        """Full linear term ``(q_u, rho1)`` of length ``N+1`` for one driver."""
+        q = self.f_theta @ theta
+        if a_lead_seq is not None:
+            q = q + self.f_lead @ a_lead_seq
+        return np.append(q, self.slack_linear)
+
+    def objective(self, z: np.ndarray, q: np.ndarray) -> float:
+        return float(0.5 * z @ self.hessian @ z + q @ z)
+
+
+@lru_cache(maxsize=4096)
+def condensed_qp(q1: float, q2: float, r1: float, c_tg: float, horizon: Horizon,
+                 slack_linear: float = SLACK_LINEAR, slack_quadratic: float = SLACK_QUADRATIC,
+                 r_jerk: float = 0.0) -> CondensedQP:
+    """A shared, cached :class:`CondensedQP` per configuration."""
+    return CondensedQP(q1, q2, r1, c_tg, horizon, slack_linear, slack_quadratic, r_jerk)
+
+
+# --------------------------------------------------------------------------------------
+# Bounds layout
+# --------------------------------------------------------------------------------------
+# One driver's bounds are two vectors ``lower``/``upper`` of length 5N + 2 K_TERM:
+#   [ box u_0..u_{N-1} | box s | gap rows (N) | v>=0 rows (N) | v<=v_max rows (N) | rate rows (N-1)
+#     | terminal rows, vehicle ahead (K_TERM) | terminal rows, stop position (K_TERM) ]
+# The first N+1 entries bound the variables, the rest bound ``G @ z`` (Horizon.constraint_matrix).
+
+
+def constraint_violation(z: np.ndarray, lower: np.ndarray, upper: np.ndarray, g: np.ndarray) -> float:
+    """Largest violation of ``lower <= (z, G z) <= upper`` for one solution ``z`` (<= 0: feasible).
+
+    A reference written with the explicit matrix ``G`` (the kernel uses recurrences).
+    """
+    vals = np.concatenate([z, g @ z])
+    return float(max(np.max(lower - vals), np.max(vals - upper)))
+
+
+# --------------------------------------------------------------------------------------
+# Backends
+# --------------------------------------------------------------------------------------
+
+@dataclass
+class QPResult:
+    z: np.ndarray | None  # (N+1,) solution (u, s) or None
+    ok: bool
+    iterations: int
+    n_active: int
+    status: str
+    duals: np.ndarray | None = None  # multipliers in the bounds layout (> 0: upper bound active)
+
+
+class QPBackend:
+    """A warm QP solver for one driver and one configuration. Never raises from ``solve``."""
+
+    name = "base"
+
+    def __init__(self, qp: CondensedQP, g: np.ndarray, max_iter: int = 1000):
+        self.qp = qp
+        self.g = np.array(g, dtype=float)  # the driver's constraint rows (writable copy)
+        self.max_iter = int(max_iter)
+
+    def solve(self, q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+              start: np.ndarray | None = None) -> QPResult:  # pragma: no cover
+        """Solve ``min 0.5 z'Hz + q'z`` s.t. ``lower <= (z, G z) <= upper`` (layout above).
+
+        ``start``: optional guess of the active set, codes ``2 c + side`` (side 1: upper
+        bound), used by backends that take a working set; otherwise they warm-start
+        from their own previous solve."""
+        raise NotImplementedError
+
+
+class DaqpBackend(QPBackend):
+    """DAQP dual active-set solver through its ``Model`` workspace (warm-started)."""
+
+    name = "daqp"
+
+    def __init__(self, qp: CondensedQP, g: np.ndarray, max_iter: int = 1000):
+        super().__init__(qp, g, max_iter)
+        self._model = None
+
+    def solve(self, q, lower, upper, start=None):
+        try:
+            import daqp
+
+            blower, bupper = lower, upper
+            sense = None
+            if start is not None:
+                sense = np.zeros(lower.shape[0], dtype=np.int32)
+                c = np.asarray(start, dtype=np.int64) >> 1
+                sense[c] = np.where(np.asarray(start) & 1, 1, 3)  # DAQP: 1 active upper, 3 active lower
+            if self._model is None:
+                self._model = daqp.Model()
+                code, _ = self._model.setup(np.array(self.qp.hessian), q, self.g,
+                                            bupper, blower, sense)
+                if code < 0:
+                    self._model = None
+                    return QPResult(None, False, 0, 0, f"daqp setup failed ({code})")
+                settings = self._model.settings
+                settings["iter_limit"] = self.max_iter
+                self._model.settings = settings
+            elif sense is not None:
+                self._model.update(f=q, bupper=bupper, blower=blower, sense=sense)
+            else:
+                self._model.update(f=q, bupper=bupper, blower=blower)
+            x, _, flag, info = self._model.solve()
+            x = np.asarray(x, dtype=float)
+            ok = flag >= 1 and bool(np.all(np.isfinite(x)))
+            lam = np.asarray(info.get("lam", ()), dtype=float)
+            if not ok:
+                self._model = None  # rebuild the workspace cold next time
+            return QPResult(x if ok else None, ok, int(info.get("iterations", 0)),
+                            int(np.count_nonzero(lam)), f"daqp exitflag {flag}", lam if ok else None)
+        except Exception as exc:  # a backend must never raise mid-simulation
+            self._model = None
+            return QPResult(None, False, 0, 0, f"daqp error: {exc}")
+
+
+class ProxsuiteBackend(QPBackend):
+    """ProxQP (proxsuite, dense), warm-started from its previous result.
+
+    ProxQP is an augmented-Lagrangian method and does not converge reliably with the
+    exact-penalty weight of the slack (a multiplier near 1e9). So it solves in two
+    phases: first with the slack fixed at 0 (the hard-constrained QP, which is the
+    answer whenever it is feasible); only if that is primal infeasible, with the slack
+    free, its penalty lowered to ``phase2_penalty`` if the exact weight does not
+    converge. Bounds beyond +-1e20 are passed as +-1e20.
+    """
+
+    name = "proxsuite"
+
+    def __init__(self, qp: CondensedQP, g: np.ndarray, max_iter: int = 1000, eps_abs: float = 1e-9,
+                 phase2_penalty: float = 1e5):
+        super().__init__(qp, g, max_iter)
+        self.eps_abs = eps_abs
+        self.phase2_penalty = phase2_penalty
+        self._qps: dict = {}
+        n = qp.horizon.n_steps
+        self._c = np.vstack([np.eye(n + 1), self.g])
+
+    def _run(self, key, q, l, u):
+        import proxsuite
+
+        dense = proxsuite.proxqp.dense
+        qp = self._qps.get(key)
+        if qp is None:
+            qp = dense.QP(self._c.shape[1], 0, self._c.shape[0])
+            qp.settings.eps_abs = self.eps_abs
+            qp.settings.eps_rel = 0.0
+            qp.settings.max_iter = self.max_iter
+            qp.settings.verbose = False
+            # its infeasibility test fires falsely on these QPs near convergence: tighten it
+            qp.settings.eps_primal_inf = 1e-14
+            qp.settings.eps_dual_inf = 1e-14
+            if key == "soft":  # the exact-penalty phase converges quickly or not at all
+                qp.settings.max_iter = min(self.max_iter, 200)
+                qp.settings.max_iter_in = 200
+            qp.init(np.array(self.qp.hessian), q, None, None, self._c, l, u)
+            self._qps[key] = qp
+        else:
+            qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+            qp.update(g=q, l=l, u=u)
+        qp.solve()
+        res = qp.results
+        x = np.array(res.x, dtype=float)
+        status = res.info.status
+        ok = status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED and bool(np.all(np.isfinite(x)))
+        if not ok:
+            self._qps.pop(key, None)  # restart cold next time
+        return ok, x, res, status
+
+    def solve(self, q, lower, upper, start=None):
+        try:
+            n = self.qp.horizon.n_steps
+            l = np.maximum(lower, -1e20)
+            u = np.minimum(upper, 1e20)
+            u1 = u.copy()
+            u1[n] = 0.0  # phase 1: no slack
+            q1 = q.copy()
+            q1[n] = 0.0
+            ok, x, res, status = self._run("hard", q1, l, u1)
+            iters = int(res.info.iter)
+            if not ok:
+                ok, x, res, status = self._run("soft", q, l, u)
+                iters += int(res.info.iter)
+                if not ok:
+                    q2 = q.copy()
+                    q2[n] = min(q[n], self.phase2_penalty)
+                    ok, x, res, status = self._run("soft-weak", q2, l, u)
+                    iters += int(res.info.iter)
+            zi = np.array(res.z, dtype=float)
+            return QPResult(x if ok else None, ok, iters, int(np.count_nonzero(np.abs(zi) > 1e-9)), str(status),
+                            zi if ok else None)
+        except Exception as exc:
+            self._qps = {}
+            return QPResult(None, False, 0, 0, f"proxsuite error: {exc}")
+
+
+class QpsolversBackend(QPBackend):
+    """Any backend of the qpsolvers package (cold, rebuilt every call: for cross-checks)."""
+
+    def __init__(self, qp: CondensedQP, g: np.ndarray, solver: str, max_iter: int = 1000):
+        super().__init__(qp, g, max_iter)
+        self.solver = solver
+        self.name = f"qpsolvers:{solver}"
+
+    def solve(self, q, lower, upper, start=None):
+        try:
+            import qpsolvers
+
+            n = self.qp.horizon.n_steps
+            lo, hi = lower[: n + 1], upper[: n + 1]
+            rlo, rhi = lower[n + 1:], upper[n + 1:]
+            g = self.g
+            # two-sided rate rows -> one-sided pairs; infinite bounds dropped
+            rate = slice(3 * n, 4 * n - 1)
+            rows_g = [g, -g[rate]]
+            rows_h = [rhi, -rlo[rate]]
+            G = np.vstack(rows_g)
+            h = np.concatenate(rows_h)
+            keep = h < INF / 2
+            kwargs = {}
+            if self.solver == "proxqp":
+                kwargs = dict(eps_abs=1e-10, eps_rel=0.0)
+            hi_box = np.where(hi >= INF / 2, np.inf, hi)
+            x = qpsolvers.solve_qp(np.array(self.qp.hessian), q, G[keep], h[keep], lb=lo, ub=hi_box,
+                                   solver=self.solver, **kwargs)
+            ok = x is not None and bool(np.all(np.isfinite(x)))
+            return QPResult(np.asarray(x, float) if ok else None, ok, 0, 0, "ok" if ok else "failed")
+        except Exception as exc:
+            return QPResult(None, False, 0, 0, f"{self.name} error: {exc}")
+
+
+def make_backend(name: str, qp: CondensedQP, g: np.ndarray, max_iter: int = 1000) -> QPBackend:
+    """Backend by name: ``"daqp"`` (default), ``"proxsuite"`` or ``"qpsolvers:<solver>"``;
+    ``g`` is the driver's constraint matrix (:meth:`Horizon.constraint_matrix`)."""
+    if name == "daqp":
+        return DaqpBackend(qp, g, max_iter)
+    if name == "proxsuite":
+        return ProxsuiteBackend(qp, g, max_iter)
+    if name.startswith("qpsolvers:"):
+        return QpsolversBackend(qp, g, name.split(":", 1)[1], max_iter)
+    raise ValueError(f"unknown QP backend {name!r}; use 'daqp', 'proxsuite' or 'qpsolvers:<solver>'")
+
+
+BACKENDS = ("daqp", "proxsuite", "qpsolvers:<solver>")

@@ -1,0 +1,54 @@
+"""Eq. (12): fitting (q1, r1) to a speed trace."""
+
+import numpy as np
+import pytest
+
+from acc_gym.drivers.calibration import _simulate, calibrate_weights
+from acc_gym.drivers.mpc import MPCDriverParams
+from acc_gym.simulation.profiles import SpeedProfile
+from acc_gym.vehicle import VehicleParams
+
+
+@pytest.fixture(scope="module")
+def synthetic():
+    lead = SpeedProfile.from_segments(15.0, [(0.0, 5.0), (1.0, 10.0), (0.0, 10.0), (-2.0, 8.0), (0.0, 10.0),
+                                             (1.5, 6.0), (0.0, 10.0)])
+    base = MPCDriverParams(v_desired=30.0)
+    t = np.arange(0.0, 59.0 + 1e-9, 0.2)
+    gap0 = 2.5 + 1.5 * 15.0
+    return lead, base, t, gap0
+
+
+def test_recovers_the_weights_of_a_synthetic_driver(synthetic):
+    lead, base, t, gap0 = synthetic
+    truth = (0.8, 30.0)
+    v = _simulate(*truth, base, lead, 15.0, gap0, t[-1], 0.2, VehicleParams(), None, None)[0]
+    res = calibrate_weights(t, v, lead, gap0, base)
+    assert res.rmse < 1e-3
+    assert res.q1 == pytest.approx(truth[0], rel=0.05)
+    assert res.r1 == pytest.approx(truth[1], rel=0.05)
+    assert res.v_model.shape == v.shape
+    # the fit is better than the starting guesses of the paper's Table 4 (q1 = 3, r1 = 45)
+    v_paper = _simulate(3.0, 45.0, base, lead, 15.0, gap0, t[-1], 0.2, VehicleParams(), None, None)[0]
+    assert res.rmse < np.sqrt(np.mean((v_paper - v) ** 2))
+
+
+def test_noisy_trace_still_fits_to_the_noise_level(synthetic):
+    lead, base, t, gap0 = synthetic
+    v = _simulate(2.0, 60.0, base, lead, 15.0, gap0, t[-1], 0.2, VehicleParams(), None, None)[0]
+    noisy = v + np.random.default_rng(0).normal(0.0, 0.1, v.shape)
+    res = calibrate_weights(t, noisy, lead, gap0, base)
+    assert res.rmse < 0.12
+
+
+@pytest.mark.parametrize("kw,match", [(dict(t=np.array([0.0, 0.2, 0.5])), "evenly spaced"),
+                                      (dict(v_data=np.array([1.0, np.nan, 1.0])), "v_data"),
+                                      (dict(gap0=-1.0), "gap0"),
+                                      (dict(q1_bounds=(2.0, 1.0)), "q1_bounds")])
+def test_bad_input(synthetic, kw, match):
+    lead, base, _, _ = synthetic
+    args = dict(t=np.array([0.0, 0.2, 0.4]), v_data=np.array([15.0, 15.0, 15.0]), gap0=20.0)
+    extra = {k: kw.pop(k) for k in list(kw) if k not in args}
+    args.update(kw)
+    with pytest.raises(ValueError, match=match):
+        calibrate_weights(args["t"], args["v_data"], lead, args["gap0"], base, **extra)

@@ -1,0 +1,105 @@
+"""Populations sampled from paper 001's Appendix A, and their emergent behaviour."""
+
+import numpy as np
+import pytest
+
+from acc_gym.drivers.mpc import Mode, MPCDriver
+from acc_gym.drivers.population import (TABLE_A1_MAX_ACCEL, TABLE_A3_BRAKING_START, quantile, sample_drivers,
+                                        speed_band)
+from acc_gym.simulation.profiles import SpeedProfile
+from acc_gym.simulation.rollout import simulate_column
+from acc_gym.vehicle import VehicleParams, accel_lower
+
+PAPER_MEAN, PAPER_SD = -1.37, 0.55  # Table A3 / Section 4.3, braking start
+
+
+@pytest.fixture(scope="module")
+def approach_population():
+    """300 typical drivers approaching a stopped vehicle from 15-35 m/s, far enough to start in ACCELERATE."""
+    rng = np.random.default_rng(2024)
+    B = 300
+    speed = rng.uniform(15.0, 35.0, B)
+    p = sample_drivers(rng, B, speed)
+    gap0 = speed ** 2 / (2.0 * np.abs(p.a_req_sail)) * 1.5 + 50.0
+    length = VehicleParams().length
+    driver = MPCDriver(p)
+    lead = SpeedProfile(np.array([0.0, 1.0]), np.zeros((B, 2)))
+    tr = simulate_column(lead, [driver], np.stack([gap0 + length, np.zeros(B)], 1),
+                         np.stack([np.zeros(B), speed], 1), duration=120.0, batch=B)
+    return p, speed, tr, driver
+
+
+def test_population_accelerate_sail_brake_and_braking_start(approach_population):
+    p, speed, tr, driver = approach_population
+    mode, a_req, gap = tr.mode[1:, :, 1], tr.a_req[1:, :, 1], tr.gap[:, :, 1]
+    B = speed.size
+    ordered, sail_err, brake_areq, bands = 0, [], [], []
+    for b in range(B):
+        m = mode[:, b]
+        sail = np.flatnonzero(m == Mode.SAIL)
+        if sail.size == 0 or not np.all(m[: sail[0]] == Mode.ACCELERATE):
+            continue
+        brake = np.flatnonzero(m[sail[0]:] == Mode.BRAKE)
+        if brake.size == 0:
+            continue
+        ordered += 1
+        sail_err.append(a_req[sail[0], b] - p.a_req_sail[b])
+        brake_areq.append(a_req[sail[0] + brake[0], b])
+        bands.append(speed_band(speed[b]))
+    brake_areq = np.array(brake_areq)
+    bands = np.array(bands)
+    assert ordered / B >= 0.90
+    # no x_min violation, nobody still rolling at the end
+    assert np.all(gap[1:] >= p.x_min[None, :] - 1e-6)
+    assert np.all(tr.v[-1, :, 1] == 0.0)
+    assert driver.stats["fallback"].sum() == 0
+    # sailing starts at each driver's own threshold (within one step's change of a_req)
+    assert np.max(np.abs(sail_err)) <= 0.05
+    # the emergent required deceleration at the braking start, against Table A3
+    assert abs(brake_areq.mean() - PAPER_MEAN) <= 0.5
+    assert 0.3 <= brake_areq.std() <= 0.8
+    medians = {int(k): float(np.median(brake_areq[bands == k])) for k in np.unique(bands)}
+    print("\nbraking-start a_req: mean %.2f sd %.2f (paper %.2f sd %.2f)" % (brake_areq.mean(), brake_areq.std(),
+                                                                         PAPER_MEAN, PAPER_SD))
+    for k, med in medians.items():
+        print(f"  band {k}: median {med:.2f}  (Table A3 {TABLE_A3_BRAKING_START[k, 2]:.2f})")
+
+
+def test_sampler_is_self_consistent_and_deterministic():
+    rng = np.random.default_rng(7)
+    for kind in ("typical", "atypical", "malicious"):
+        p = sample_drivers(np.random.default_rng(7), 500, np.random.default_rng(1).uniform(5, 38, 500), kind)
+        assert np.all(p.a_min <= 1.5 * p.a_req_sail + 1e-12)
+        assert np.all(p.a_req_sail < p.a_sail)
+        assert np.all(p.a_min < p.a_sail) and np.all(p.a_sail < 0) and np.all(p.a_max > 0)
+        assert np.all(p.a_min >= accel_lower(p.v_desired, VehicleParams()) - 1e-9)
+        q = sample_drivers(np.random.default_rng(7), 500, np.random.default_rng(1).uniform(5, 38, 500), kind)
+        assert np.array_equal(p.q1, q.q1) and np.array_equal(p.a_min, q.a_min)
+    # kinds differ as documented
+    spd = rng.uniform(20, 30, 2000)
+    typ = sample_drivers(np.random.default_rng(1), 2000, spd, "typical")
+    aty = sample_drivers(np.random.default_rng(1), 2000, spd, "atypical")
+    mal = sample_drivers(np.random.default_rng(1), 2000, spd, "malicious")
+    band = speed_band(spd)
+    lo = quantile(TABLE_A1_MAX_ACCEL, band, 0.1)
+    hi = quantile(TABLE_A1_MAX_ACCEL, band, 0.9)
+    assert np.all((typ.a_max >= lo - 1e-9) & (typ.a_max <= hi + 1e-9))
+    assert np.all((aty.a_max <= lo + 1e-9) | (aty.a_max >= hi - 1e-9))
+    assert np.all(mal.c_tg < 0.8 + 1e-12) and np.all(mal.a_min < -7.0)
+
+
+def test_quantile_reads_the_five_number_summary():
+    band = np.array([1, 1, 1, 1, 1])
+    levels = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
+    assert np.allclose(quantile(TABLE_A1_MAX_ACCEL, band, levels), TABLE_A1_MAX_ACCEL[1])
+    assert quantile(TABLE_A1_MAX_ACCEL, 0, 0.125) == pytest.approx(0.5 * (0.13 + 1.11))
+    assert list(speed_band([0.0, 9.9, 10.0, 25.0, 39.0])) == [0, 0, 1, 2, 3]
+
+
+@pytest.mark.parametrize("kw,match", [(dict(kind="crazy"), "kind"), (dict(n=0), "n must"),
+                                      (dict(speed=-3.0), "speeds")])
+def test_sampler_rejects_bad_input(kw, match):
+    args = dict(n=5, speed=20.0, kind="typical")
+    args.update(kw)
+    with pytest.raises(ValueError, match=match):
+        sample_drivers(np.random.default_rng(0), args["n"], args["speed"], args["kind"])

@@ -1,0 +1,160 @@
+"""The condensed QP: its construction, and the exactness of every solve path."""
+
+import numpy as np
+import pytest
+
+from acc_gym.drivers.base import Observation
+from acc_gym.drivers.mpc import MPCDriver, MPCSettings, SolvePath, preset
+from acc_gym.drivers.population import sample_drivers
+from acc_gym.drivers.qp import (K_TERM, CondensedQP, Horizon, constraint_violation, make_backend, riccati_terminal,
+                                terminal_chords)
+
+
+def test_prediction_matrices_match_the_dynamics():
+    h = Horizon(10, 0.2, "zoh")
+    tv, tp = h.matrices
+    rng = np.random.default_rng(0)
+    u = rng.normal(size=10)
+    v, p = 0.0, 0.0
+    vs, ps = [], []
+    for k in range(10):  # exact integration of a held acceleration
+        p += v * 0.2 + 0.5 * u[k] * 0.04
+        v += u[k] * 0.2
+        vs.append(v)
+        ps.append(p)
+    assert np.allclose(tv @ u, vs) and np.allclose(tp @ u, ps)
+    he = Horizon(10, 0.2, "euler")
+    tv, tp = he.matrices
+    v, p, ps = 0.0, 0.0, []
+    for k in range(10):  # the paper's Euler form
+        p += v * 0.2
+        v += u[k] * 0.2
+        ps.append(p)
+    assert np.allclose(tp @ u, ps)
+
+
+def test_condensed_cost_equals_the_stage_sum():
+    h = Horizon(12, 0.2)
+    qp = CondensedQP(3.0, 1.0, 45.0, 1.5, h, r_jerk=10.0)
+    rng = np.random.default_rng(1)
+    theta = np.array([12.0, -3.0, 0.4])  # e_x0, e_v0, u_prev
+    u = rng.normal(size=12)
+    z = np.append(u, 0.0)
+    # simulate the error dynamics (Eq. 5, exact discretisation) and add up the cost by hand
+    ex, ev, dt, c = theta[0], theta[1], 0.2, 1.5
+    cost, prev = 0.0, theta[2]
+    P = qp.terminal
+    for k in range(12):
+        ex, ev = ex + dt * ev - (0.5 * dt * dt + c * dt) * u[k], ev - dt * u[k]
+        cost += 45.0 * u[k] ** 2 + 10.0 * (u[k] - prev) ** 2
+        prev = u[k]
+        if k < 11:
+            cost += 3.0 * ex * ex + 1.0 * ev * ev
+        else:
+            e = np.array([ex, ev])
+            cost += e @ P @ e
+    q = qp.linear_term(theta)
+    # 0.5 z'Hz + q'z equals the cost up to a constant independent of u: compare differences
+    z0 = np.zeros(13)
+    base = _stage_cost(np.zeros(12), theta, P)
+    assert qp.objective(z, q) - qp.objective(z0, q) == pytest.approx(cost - base, rel=1e-9)
+
+
+def _stage_cost(u, theta, P):
+    ex, ev, prev = theta
+    cost = 0.0
+    for k in range(12):
+        ex, ev = ex + 0.2 * ev - (0.02 + 0.3) * u[k], ev - 0.2 * u[k]
+        cost += 45.0 * u[k] ** 2 + 10.0 * (u[k] - prev) ** 2
+        prev = u[k]
+        cost += (3.0 * ex * ex + ev * ev) if k < 11 else np.array([ex, ev]) @ P @ np.array([ex, ev])
+    return cost
+
+
+def test_riccati_terminal_is_a_fixed_point():
+    h = Horizon()
+    P = riccati_terminal(3.0, 1.0, 45.0, 1.5, h)
+    a = np.array([[1.0, 0.2], [0.0, 1.0]])
+    b = np.array([[-(0.02 + 0.3)], [-0.2]])
+    q, r = np.diag([3.0, 1.0]), 45.0
+    nxt = q + a.T @ P @ a - a.T @ P @ b @ np.linalg.inv(r + b.T @ P @ b) @ b.T @ P @ a
+    assert np.allclose(nxt, P, rtol=1e-8)
+
+
+def test_terminal_chords_lie_above_the_stopping_distance():
+    alpha, beta = terminal_chords(-2.0, 2.5, 30.0)
+    w = np.linspace(0.0, 30.0, 301)
+    f = w * w / 4.0 + w * 2.0 / 5.0
+    chord = np.max(alpha[..., None] + beta[..., None] * w, axis=0)
+    assert alpha.shape == (K_TERM,)
+    assert np.all(chord >= f - 1e-9)  # sufficient: never less room than needed
+    assert np.max(chord - f) < 30.0 ** 2 / (K_TERM ** 2 * 8 * 2.0) + 1e-9  # h^2 / (8 * 2b)
+
+
+def _random_instances(count, seed):
+    """QPs the driver actually solved from random states, with its solution and path."""
+    rng = np.random.default_rng(seed)
+    params = sample_drivers(rng, count, rng.uniform(12.0, 35.0, count))
+    out = []
+    for i in range(count):
+        d = MPCDriver(params.take(slice(i, i + 1)))
+        d.mode[:] = rng.integers(0, 4)
+        v = rng.uniform(0.0, 35.0)
+        obs = Observation.build(v=v, a=rng.uniform(-2.0, 1.5), gap=rng.uniform(1.0, 150.0),
+                                v_lead=rng.uniform(0.0, 35.0), a_lead=rng.uniform(-4.0, 1.0),
+                                stop_gap=rng.uniform(5.0, 300.0) if rng.random() < 0.2 else np.inf)
+        d.act(obs)
+        data = d.qp_data(0)
+        if data["path"] in (SolvePath.UNCONSTRAINED, SolvePath.ACTIVE_SET, SolvePath.QP):
+            qp = (d._qp_cruise if d.info["target"][0] == 2 else d._qp_follow)[0]
+            out.append((qp, data, np.append(d.plan[0], d.info["slack"][0])))
+    return out
+
+
+def test_every_path_is_exact_against_a_reference_solver():
+    instances = _random_instances(120, seed=11)
+    paths = {inst[1]["path"] for inst in instances}
+    assert {SolvePath.UNCONSTRAINED, SolvePath.ACTIVE_SET} <= paths
+    checked = 0
+    for qp, data, z in instances:
+        ref = make_backend("qpsolvers:quadprog", qp, data["G"]).solve(data["q"], data["lower"], data["upper"])
+        if not ref.ok:  # quadprog's own numerical trouble with the exact-penalty scale
+            continue
+        assert np.max(np.abs(ref.z[:-1] - z[:-1])) < 1e-6
+        assert constraint_violation(z, data["lower"], data["upper"], data["G"]) < 1e-6
+        checked += 1
+    assert checked >= 0.8 * len(instances)
+
+
+def test_daqp_agrees_with_a_second_qpsolvers_backend():
+    instances = _random_instances(60, seed=5)
+    for qp, data, _ in instances[:40]:
+        a = make_backend("daqp", qp, data["G"]).solve(data["q"], data["lower"], data["upper"])
+        b = make_backend("qpsolvers:proxqp", qp, data["G"]).solve(data["q"], data["lower"], data["upper"])
+        assert a.ok
+        if b.ok:
+            assert np.max(np.abs(a.z[:-1] - b.z[:-1])) < 1e-4
+
+
+def test_warm_active_set_off_gives_the_same_driving():
+    rng = np.random.default_rng(2)
+    n = 30
+    params = sample_drivers(rng, n, rng.uniform(15.0, 30.0, n))
+    obs = Observation.build(v=rng.uniform(0, 30, n), a=rng.uniform(-2, 1.5, n), gap=rng.uniform(3, 120, n),
+                            v_lead=rng.uniform(0, 30, n), a_lead=rng.uniform(-3, 0.5, n))
+    warm = MPCDriver(params).act(obs)
+    cold = MPCDriver(params, settings=MPCSettings(warm_active_set=False)).act(obs)
+    assert np.allclose(warm, cold, atol=1e-7)
+
+
+def test_backend_errors_are_returned_not_raised():
+    qp = CondensedQP(3.0, 1.0, 45.0, 1.5, Horizon())
+    g = Horizon().constraint_matrix(np.zeros(K_TERM))
+    n = Horizon().n_bounds
+    lower, upper = np.full(n, -1e30), np.full(n, 1e30)
+    q = np.full(61, np.nan)  # what the driver's input checks keep out; a backend must still not raise
+    for name in ("daqp", "proxsuite", "qpsolvers:quadprog"):
+        res = make_backend(name, qp, g, max_iter=50).solve(q, lower, upper)
+        assert not res.ok
+    with pytest.raises(ValueError, match="unknown QP backend"):
+        make_backend("cplex", qp, g)

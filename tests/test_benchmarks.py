@@ -1,0 +1,19 @@
+"""The benchmark scripts run and print the documented JSON keys (speed is not tested here)."""
+
+import json
+import pathlib
+import subprocess
+import sys
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def test_bench_driver_json_keys():
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_driver.py"), "--json", "--repeats", "1",
+                        "--batch", "8", "--batch-repeats", "1"], capture_output=True, text=True, check=True)
+    out = json.loads(r.stdout)
+    for key in ("driver_step_us_median", "driver_step_us_p99", "driver_step_us_max", "active_share",
+                "batch_vehicle_steps_per_s"):
+        assert key in out and out[key] > 0
+    assert out["driver_step_us_median"] <= out["driver_step_us_p99"] <= out["driver_step_us_max"]
+    assert 0.0 < out["active_share"] < 1.0
