@@ -68,12 +68,12 @@ def required_decel(R, dR):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def fill_bounds(P, S, i, m, v, u_prev, a_need, lower, upper):
-    """Input box, speed and rate rows of driver ``i`` in mode ``m``; returns (lower0, upper0).
+def mode_limits(P, S, i, m, v, u_prev, a_need):
+    """``(lower0, upper0, env_lo, env_hi, rate)`` of driver ``i`` in mode ``m``: the first
+    input's range (mode, ramp and vehicle), the plan's range and its per-step change bound.
 
     ``a_need`` [m/s^2]: the constant deceleration that would stop the closing on the most
     demanding real target at ``x_min`` (0 if not closing); it sets the emergency range."""
-    n = (lower.shape[1] - 2 * K_TERM) // 5
     dt = S[S_DT]
     a_up, a_lo = vehicle_limits(P, i, v)
     a_max, a_min, a_sail = P[i, A_MAX], P[i, A_MIN], P[i, A_SAIL]
@@ -98,6 +98,15 @@ def fill_bounds(P, S, i, m, v, u_prev, a_need, lower, upper):
     # ramp: move towards the mode's range at the rate limit, never jump
     lower0 = max(min(mode_lo, u_prev + rate0), u_prev - rate0)
     upper0 = min(max(mode_hi, u_prev - rate0), u_prev + rate0)
+    return lower0, upper0, env_lo, env_hi, rate
+
+
+@numba.njit(cache=True, error_model="numpy")
+def fill_bounds(P, S, i, m, v, u_prev, a_need, lower, upper):
+    """Input box, speed and rate rows of driver ``i`` in mode ``m``; returns (lower0, upper0)."""
+    n = (lower.shape[1] - 2 * K_TERM) // 5
+    dt = S[S_DT]
+    lower0, upper0, env_lo, env_hi, rate = mode_limits(P, S, i, m, v, u_prev, a_need)
     lower[i, 0] = lower0
     upper[i, 0] = upper0
     for k in range(1, n):
@@ -109,18 +118,109 @@ def fill_bounds(P, S, i, m, v, u_prev, a_need, lower, upper):
     # speed above v_max (e.g. v_desired lowered): the bound follows the slowest reachable speed
     slowest = 0.0
     ulow = lower0
+    vmax = P[i, V_MAX] - v
     for k in range(n):
         if k > 0:
-            ulow = max(lower[i, k], ulow - rate)
+            ulow = max(env_lo, ulow - rate)
         slowest += dt * ulow
         lower[i, r0 + n + k] = -INF
         upper[i, r0 + n + k] = v
         lower[i, r0 + 2 * n + k] = -INF
-        upper[i, r0 + 2 * n + k] = max(P[i, V_MAX] - v, slowest)
+        upper[i, r0 + 2 * n + k] = max(vmax, slowest)
     for k in range(n - 1):
         lower[i, r0 + 3 * n + k] = -rate
         upper[i, r0 + 3 * n + k] = rate
     return lower0, upper0
+
+
+@numba.njit(cache=True, error_model="numpy")
+def fill_target_rows(P, S, i, v, gap, v_lead, stop_gap, aseq, lower, upper):
+    """Gap rows (every real target, predicted at constant speed or with the lead's predicted
+    deceleration ``aseq``) and terminal stoppability rows of driver ``i``."""
+    n = (lower.shape[1] - 2 * K_TERM) // 5
+    dt = S[S_DT]
+    zoh = S[S_ZOH] > 0.5
+    x_min = P[i, X_MIN]
+    has_lead = gap < np.inf
+    has_stop = stop_gap < np.inf
+    r0 = n + 1
+    dvl = 0.0
+    dpl = 0.0
+    for k in range(n):
+        ub = INF
+        tk = (k + 1) * dt
+        if has_lead:
+            a = aseq[k]
+            dpl += dt * dvl + (0.5 * dt * dt * a if zoh else 0.0)
+            dvl += dt * a
+            ub = gap - x_min + tk * (v_lead - v) + dpl
+        if has_stop:
+            ub = min(ub, stop_gap - tk * v)
+        lower[i, r0 + k] = -INF
+        upper[i, r0 + k] = ub
+    # terminal: dp_N + beta_j dv_N <= gap_N(free) - x_min - alpha_j - beta_j w_N(free)
+    tn = n * dt
+    for j in range(K_TERM):
+        al = P[i, C_ALPHA + j]
+        be = P[i, C_BETA + j]
+        cl = 5 * n + j
+        cs = 5 * n + K_TERM + j
+        lower[i, cl] = -INF
+        lower[i, cs] = -INF
+        upper[i, cl] = INF
+        upper[i, cs] = INF
+        if has_lead:
+            upper[i, cl] = gap + tn * v_lead + dpl - tn * v - x_min - al - be * (v - (v_lead + dvl))
+        if has_stop:
+            upper[i, cs] = stop_gap - tn * v - al - be * v
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _fast_violation(P, S, i, v, u, u_prev, lower0, upper0, env_lo, env_hi, rate, gap, v_lead, stop_gap, aseq):
+    """Largest violation of the plan ``u`` (s = 0), from the same quantities that
+    :func:`fill_bounds` and :func:`fill_target_rows` write, without writing them (the
+    unconstrained fast path never needs the bounds in memory)."""
+    n = u.shape[0]
+    dt = S[S_DT]
+    zoh = S[S_ZOH] > 0.5
+    half = 0.5 * dt * dt if zoh else 0.0
+    x_min = P[i, X_MIN]
+    has_lead = gap < np.inf
+    has_stop = stop_gap < np.inf
+    vmax = P[i, V_MAX] - v
+    worst = max(lower0 - u[0], u[0] - upper0)
+    dv = 0.0
+    dp = 0.0
+    dvl = 0.0
+    dpl = 0.0
+    slowest = 0.0
+    ulow = lower0
+    for k in range(n):
+        z = u[k]
+        if k > 0:
+            worst = max(worst, env_lo - z, z - env_hi, abs(z - u[k - 1]) - rate)
+            ulow = max(env_lo, ulow - rate)
+        slowest += dt * ulow
+        dp += dt * dv + half * z
+        dv += dt * z
+        tk = (k + 1) * dt
+        if has_lead:
+            a = aseq[k]
+            dpl += dt * dvl + half * a
+            dvl += dt * a
+            worst = max(worst, dp - (gap - x_min + tk * (v_lead - v) + dpl))
+        if has_stop:
+            worst = max(worst, dp - (stop_gap - tk * v))
+        worst = max(worst, -dv - v, dv - max(vmax, slowest))
+    tn = n * dt
+    for j in range(K_TERM):
+        al = P[i, C_ALPHA + j]
+        be = P[i, C_BETA + j]
+        if has_lead:
+            worst = max(worst, dp + be * dv - (gap + tn * v_lead + dpl - tn * v - x_min - al - be * (v - (v_lead + dvl))))
+        if has_stop:
+            worst = max(worst, dp + be * dv - (stop_gap - tn * v - al - be * v))
+    return worst
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -437,7 +537,7 @@ def _lead_term(cum, i, k, a_l, ks, a_part, n):
     return out
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gain_lead, hinv_f, hinv_c,
          mode, lower, upper, plan, aseq, W, act_codes, act_count, stats, sf, sw, ss, codes):
     """Driver ``i``'s step; returns its path (QP: the backend must solve it)."""
@@ -539,38 +639,7 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
                 u0 += gain_lead[i, 0, j] * aseq[i, j]
         if u0 <= best or m != ACCELERATE:
             target, th0, th1 = t_real, t0, t1
-    lower0, upper0 = fill_bounds(P, S, i, m, v, up, a_need, lower, upper)
-    # --- gap rows: every real target, constant speed (or predicted lead accelerations)
-    dvl = 0.0
-    dpl = 0.0
-    for k in range(n):
-        ub = INF
-        tk = (k + 1) * dt
-        if has_lead:
-            a = aseq[i, k]
-            dpl += dt * dvl + (0.5 * dt * dt * a if zoh else 0.0)
-            dvl += dt * a
-            ub = gap[i] - x_min + tk * (v_lead[i] - v) + dpl
-        if has_stop:
-            ub = min(ub, stop_gap[i] - tk * v)
-        lower[i, r0 + k] = -INF
-        upper[i, r0 + k] = ub
-    # --- terminal stoppability rows: dp_N + beta_j dv_N <= gap_N(free) - x_min - alpha_j - beta_j w_N(free)
-    tn = n * dt
-    for j in range(K_TERM):
-        al = P[i, C_ALPHA + j]
-        be = P[i, C_BETA + j]
-        cl = 5 * n + j
-        cs = 5 * n + K_TERM + j
-        lower[i, cl] = -INF
-        lower[i, cs] = -INF
-        upper[i, cl] = INF
-        upper[i, cs] = INF
-        if has_lead:
-            vln = v_lead[i] + dvl
-            upper[i, cl] = gap[i] + tn * v_lead[i] + dpl - tn * v - x_min - al - be * (v - vln)
-        if has_stop:
-            upper[i, cs] = stop_gap[i] - tn * v - al - be * v
+    lower0, upper0, env_lo, env_hi, rate = mode_limits(P, S, i, m, v, up, a_need)
     W[i, W_TARGET] = target
     W[i, W_AREQ] = areq
     W[i, W_DR] = dR
@@ -614,7 +683,8 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
                 z += _lead_term(gain_lead, i, k, a_l, ks, a_part, n)
         u_unc[k] = z
     beta = P[i, C_BETA:C_BETA + K_TERM]
-    viol, _ = _scan(u_unc, lower[i], upper[i], n, dt, zoh, codes, 0, beta)
+    viol = _fast_violation(P, S, i, v, u_unc, up, lower0, upper0, env_lo, env_hi, rate, gap[i], v_lead[i],
+                           stop_gap[i], aseq[i])
     W[i, W_VIOL] = viol
     path = -1
     if viol <= S[S_FEAS]:
@@ -622,7 +692,10 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
             plan[i, k] = u_unc[k]
         act_count[i] = 0
         path = FAST
-    elif warm:
+    else:  # some constraint is active: the bounds are needed in memory from here on
+        fill_bounds(P, S, i, m, v, up, a_need, lower, upper)
+        fill_target_rows(P, S, i, v, gap[i], v_lead[i], stop_gap[i], aseq[i], lower, upper)
+    if path < 0 and warm:
         # --- warm active set: last step's, shifted along the horizon
         m0 = min(act_count[i], MAX_ACTIVE)
         for a in range(m0):
@@ -658,7 +731,7 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
 def _make_prepare(parallel):
     rng = numba.prange if parallel else range
 
-    def prepare(P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, G, GL, H, B, PA, W, I, SF, SC):
+    def prepare(P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, GL, H, B, PA, W, I, SF, SC):
         # few arguments on purpose: numba's dispatch costs ~0.1 us per argument
         err = _check_inputs(v0, u_prev, gap, v_lead, a_lead, stop_gap)
         if err != 0:
@@ -669,8 +742,6 @@ def _make_prepare(parallel):
         o1 = 5 * width
         o2 = o1 + 3 * MAX_ACTIVE * n
         o3 = o2 + 2 * MAX_ACTIVE * MAX_ACTIVE
-        gain_f = G[:, 0]
-        gain_c = G[:, 1, :, 1:]
         hinv_f = H[:, 0]
         hinv_c = H[:, 1]
         lower = B[:, 0]

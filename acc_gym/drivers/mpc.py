@@ -316,9 +316,9 @@ class MPCDriver:
                            for i in range(n)]
         N = self.horizon.n_steps
         # kernel arrays (few, large: numba's dispatch cost grows with the argument count)
-        self._G = np.zeros((n, 2, N, 3))  # unconstrained laws: follow, cruise (theta = e_x, e_v, u_prev)
-        self._G[:, 0] = np.stack([q.gain for q in self._qp_follow])
-        self._G[:, 1, :, 1:] = np.stack([q.gain[:, 1:] for q in self._qp_cruise])
+        # unconstrained laws: follow (theta = e_x, e_v, u_prev), cruise (e_v, u_prev)
+        self._gain_f = np.ascontiguousarray(np.stack([q.gain for q in self._qp_follow]))
+        self._gain_c = np.ascontiguousarray(np.stack([q.gain[:, 1:] for q in self._qp_cruise]))
         self._H = np.ascontiguousarray(np.stack([np.stack([f.hinv_sums, c.hinv_sums])
                                                  for f, c in zip(self._qp_follow, self._qp_cruise)]))
         # running row sums of the lead-acceleration gains (the predicted sequence is piecewise constant)
@@ -359,8 +359,9 @@ class MPCDriver:
 
     def __getstate__(self):
         state = self.__dict__.copy()
-        for view in ("_lower", "_upper", "_plan", "_aseq", "mode", "_act_count", "_hard", "_stats", "_act_codes"):
-            del state[view]  # views into the packed kernel arrays, re-made in __setstate__
+        for view in ("_lower", "_upper", "_plan", "_aseq", "mode", "_act_count", "_hard", "_stats", "_act_codes",
+                     "_last_arrays", "_u_prev"):
+            state.pop(view, None)  # views into the packed kernel arrays, re-made in __setstate__
         state["_backends"] = {}  # solver workspaces are rebuilt after unpickling ...
         state["_last_used"] = {}  # ... and start from the kernel's working set
         return state
@@ -401,6 +402,12 @@ class MPCDriver:
         and cross-checks: ``hessian`` (N+1, N+1), ``q`` (N+1,), ``G`` (rows, N+1) and the
         bounds ``lower``/``upper`` on ``(z, G z)`` (layout in :mod:`acc_gym.drivers.qp`)."""
         W = self._W
+        if int(W[i, K.W_PATH]) in (K.FAST, K.HOLD):  # the fast paths never write the bounds: do it now
+            v, u_prev, gap, v_lead, _, stop_gap = (float(arr[i]) for arr in self._last_arrays)
+            K.fill_bounds(self._P, self._S, i, int(W[i, K.W_MODE_PRE]), v, u_prev, W[i, K.W_ANEED], self._lower,
+                          self._upper)
+            K.fill_target_rows(self._P, self._S, i, v, gap, v_lead, stop_gap, self._aseq[i], self._lower,
+                               self._upper)
         target = int(W[i, K.W_TARGET])
         qp = (self._qp_cruise if target == K.CRUISE else self._qp_follow)[i]
         theta = np.array([W[i, K.W_TH0], W[i, K.W_TH1], self._u_prev[i]])
@@ -434,13 +441,15 @@ class MPCDriver:
                     raise ValueError(f"observation field {name!r} must have shape ({n},), got {value.shape}")
             arrays.append(value)
         W = self._W
-        n_hard = self._prepare(self._P, self._S, *arrays, self._G, self._GL, self._H, self._B, self._PA, W,
+        n_hard = self._prepare(self._P, self._S, *arrays, self._gain_f, self._gain_c, self._GL, self._H, self._B,
+                               self._PA, W,
                                self._I, self._SF, self._SC)
         if n_hard < 0:
             name = _FIELDS[-n_hard - 1]
             raise ValueError(f"observation.{name} is invalid for an MPC driver: {arrays[-n_hard - 1]!r} "
                              f"(speeds must be finite and >= 0, accelerations finite, gaps not NaN or -inf)")
         self._u_prev = arrays[1]
+        self._last_arrays = arrays
         for j in range(n_hard):
             self._solve_one(int(self._hard[j]), arrays)
         self._step += 1
