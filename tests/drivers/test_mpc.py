@@ -264,3 +264,24 @@ def test_parallel_kernel_matches_serial():
     u_par = par.act(obs)
     u_ser = np.array([MPCDriver(params.take(slice(i, i + 1))).act(obs.take(slice(i, i + 1)))[0] for i in range(n)])
     assert np.allclose(u_par, u_ser, atol=1e-9)
+
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(v=st.floats(0.0, 45.0), a=st.floats(-9.0, 4.0), gap=st.one_of(st.floats(-5.0, 400.0), st.just(np.inf)),
+       v_lead=st.floats(0.0, 45.0), a_lead=st.floats(-9.0, 4.0), mode=st.integers(0, 3),
+       name=st.sampled_from(sorted(PRESETS)))
+def test_any_valid_state_gives_a_finite_command_within_the_vehicle_limits(v, a, gap, v_lead, a_lead, mode, name):
+    """Property: whatever the (valid) scene, the driver answers, never raises, never NaN."""
+    d = MPCDriver(preset(name))
+    d.mode[:] = mode
+    u = d.act(Observation.build(v=v, a=a, gap=gap, v_lead=v_lead, a_lead=a_lead))
+    veh = VehicleParams()
+    assert np.all(np.isfinite(u))
+    assert u[0] <= max(float(accel_upper(v, veh)), a + 10.0) + 1e-9
+    assert u[0] >= float(accel_lower(v, veh)) - 1e-9
+    assert d.mode[0] in (Mode.ACCELERATE, Mode.SAIL, Mode.BRAKE, Mode.EMERGENCY)
+    assert d.info["path"][0] in [p.value for p in SolvePath]
