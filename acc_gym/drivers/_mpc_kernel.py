@@ -338,6 +338,14 @@ def _skipped(c, skip, n_skip):
     return False
 
 
+@numba.njit(cache=True, inline="always")
+def _worse(d, c, side, worst, code, skip, n_skip):
+    """Keep violation ``d`` of constraint ``c`` (bound ``side``) if it is the worst so far."""
+    if d > worst and not _skipped(c, skip, n_skip):
+        return d, 2 * c + side
+    return worst, code
+
+
 @numba.njit(cache=True)
 def _scan(u, lo, up, n, dt, zoh, skip, n_skip, beta):
     """Largest violation of the plan ``u`` (s = 0) and its code (2c + side); codes in skip ignored.
@@ -354,38 +362,20 @@ def _scan(u, lo, up, n, dt, zoh, skip, n_skip, beta):
         z = u[k]
         dp += dt * dv + half * z
         dv += dt * z
-        d = z - up[k]
-        if d > worst and not _skipped(k, skip, n_skip):
-            worst, code = d, 2 * k + 1
-        d = lo[k] - z
-        if d > worst and not _skipped(k, skip, n_skip):
-            worst, code = d, 2 * k
+        worst, code = _worse(z - up[k], k, 1, worst, code, skip, n_skip)
+        worst, code = _worse(lo[k] - z, k, 0, worst, code, skip, n_skip)
         c = r0 + k
-        d = dp - up[c]
-        if d > worst and not _skipped(c, skip, n_skip):
-            worst, code = d, 2 * c + 1
-        c += n
-        d = -dv - up[c]
-        if d > worst and not _skipped(c, skip, n_skip):
-            worst, code = d, 2 * c + 1
-        c += n
-        d = dv - up[c]
-        if d > worst and not _skipped(c, skip, n_skip):
-            worst, code = d, 2 * c + 1
+        worst, code = _worse(dp - up[c], c, 1, worst, code, skip, n_skip)
+        worst, code = _worse(-dv - up[c + n], c + n, 1, worst, code, skip, n_skip)
+        worst, code = _worse(dv - up[c + 2 * n], c + 2 * n, 1, worst, code, skip, n_skip)
         if k < n - 1:
-            c += n
+            c += 3 * n
             du = u[k + 1] - z
-            d = du - up[c]
-            if d > worst and not _skipped(c, skip, n_skip):
-                worst, code = d, 2 * c + 1
-            d = lo[c] - du
-            if d > worst and not _skipped(c, skip, n_skip):
-                worst, code = d, 2 * c
+            worst, code = _worse(du - up[c], c, 1, worst, code, skip, n_skip)
+            worst, code = _worse(lo[c] - du, c, 0, worst, code, skip, n_skip)
     for j in range(2 * K_TERM):
         c = 5 * n + j
-        d = dp + beta[j % K_TERM] * dv - up[c]
-        if d > worst and not _skipped(c, skip, n_skip):
-            worst, code = d, 2 * c + 1
+        worst, code = _worse(dp + beta[j % K_TERM] * dv - up[c], c, 1, worst, code, skip, n_skip)
     return worst, code
 
 

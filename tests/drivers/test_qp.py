@@ -158,3 +158,31 @@ def test_backend_errors_are_returned_not_raised():
         assert not res.ok
     with pytest.raises(ValueError, match="unknown QP backend"):
         make_backend("cplex", qp, g)
+
+
+def test_fast_check_equals_the_scan_of_the_written_bounds():
+    """The unconstrained path checks the plan without writing the bounds; it must judge
+    exactly as the full scan of the bounds the QP backends receive."""
+    from acc_gym.drivers import _mpc_kernel as K
+
+    rng = np.random.default_rng(4)
+    n = 40
+    params = sample_drivers(rng, n, rng.uniform(8.0, 35.0, n))
+    d = MPCDriver(params)
+    v = rng.uniform(0.0, 35.0, n)
+    gap = np.where(rng.random(n) < 0.8, rng.uniform(1.0, 150.0, n), np.inf)
+    stop = np.where(rng.random(n) < 0.3, rng.uniform(5.0, 300.0, n), np.inf)
+    d.act(Observation.build(v=v, a=rng.uniform(-2, 1.5, n), gap=gap, v_lead=rng.uniform(0, 35, n),
+                            a_lead=rng.uniform(-4, 1, n), stop_gap=stop))
+    N = d.horizon.n_steps
+    for i in range(n):
+        data = d.qp_data(i)  # writes the bounds if the kernel did not
+        for trial in range(5):
+            u = rng.normal(0.0, 1.5, N)
+            w = d._W[i]
+            lower0, upper0, env_lo, env_hi, rate = K.mode_limits(d._P, d._S, i, int(w[K.W_MODE_PRE]), v[i],
+                                                                 d._u_prev[i], w[K.W_ANEED])
+            fast = K._fast_violation(d._P, d._S, i, v[i], u, d._u_prev[i], lower0, upper0, env_lo, env_hi, rate,
+                                     gap[i], d._last_arrays[3][i], stop[i], d._aseq[i])
+            full = constraint_violation(np.append(u, 0.0), data["lower"], data["upper"], data["G"])
+            assert max(fast, 0.0) == pytest.approx(full, abs=1e-9)  # full also counts s >= 0
