@@ -498,7 +498,7 @@ class MPCDriver:
         while res.ok and res.z[N] > s.slack_tol and escalate:
             m, a_need = escalate.pop(0)
             lower0, upper0 = K.fill_bounds(self._P, self._S, i, m, v, u_prev, a_need, self._lower, self._upper)
-            W[i, K.W_LOWER0], W[i, K.W_UPPER0] = lower0, upper0
+            W[i, K.W_LOWER0], W[i, K.W_UPPER0], W[i, K.W_MODE_PRE] = lower0, upper0, m
             if v + s.dt * upper0 <= 0.0:  # stopping inside the step anyway
                 res = None
                 break
