@@ -491,7 +491,6 @@ def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin,
 def _shift_active(codes, m, n):
     """Receding horizon: constraints of step k become those of step k-1 (input 0 stays)."""
     out = 0
-    r0 = n + 1
     for a in range(m):
         c = codes[a] >> 1
         side = codes[a] & 1
@@ -541,7 +540,6 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
     zoh = S[S_ZOH] > 0.5
     use_acc = S[S_LEADACC] > 0.5
     warm = S[S_WARM] > 0.5
-    r0 = n + 1
     stats[i, ST_STEPS] += 1
     v = v0[i]
     up = u_prev[i]

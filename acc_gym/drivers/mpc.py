@@ -78,7 +78,7 @@ import numpy as np
 from acc_gym._validation import check_finite
 from acc_gym.drivers import _mpc_kernel as K
 from acc_gym.drivers.base import Observation
-from acc_gym.drivers.qp import K_TERM, Horizon, condensed_qp, make_backend, terminal_chords
+from acc_gym.drivers.qp import Horizon, condensed_qp, make_backend, terminal_chords
 from acc_gym.vehicle import VehicleParams, accel_lower
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from acc_gym.drivers.base import Observation
-from acc_gym.drivers.mpc import MPCDriver, MPCSettings, SolvePath, preset
+from acc_gym.drivers.mpc import MPCDriver, MPCSettings, SolvePath
 from acc_gym.drivers.population import sample_drivers
 from acc_gym.drivers.qp import (K_TERM, CondensedQP, Horizon, constraint_violation, make_backend, riccati_terminal,
                                 terminal_chords)
