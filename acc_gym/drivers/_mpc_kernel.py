@@ -622,9 +622,8 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         t_real, t0, t1 = STOP, stop_gap[i] - c * v, -v
     if t_real >= 0:
         u0 = gain_f[i, 0, 0] * t0 + gain_f[i, 0, 1] * t1 + gain_f[i, 0, 2] * up
-        if t_real == LEAD and use_acc:
-            for j in range(n):
-                u0 += gain_lead[i, 0, j] * aseq[i, j]
+        if t_real == LEAD and a_l != 0.0:
+            u0 += _lead_term(gain_lead, i, 0, a_l, ks, a_part, n)
         if u0 <= best or m != ACCELERATE:
             target, th0, th1 = t_real, t0, t1
     lower0, upper0, env_lo, env_hi, rate = mode_limits(P, S, i, m, v, up, a_need)

@@ -285,3 +285,27 @@ def test_any_valid_state_gives_a_finite_command_within_the_vehicle_limits(v, a, 
     assert u[0] >= float(accel_lower(v, veh)) - 1e-9
     assert d.mode[0] in (Mode.ACCELERATE, Mode.SAIL, Mode.BRAKE, Mode.EMERGENCY)
     assert d.info["path"][0] in [p.value for p in SolvePath]
+
+
+def test_law_selection_uses_the_predicted_lead_deceleration():
+    """In ACCELERATE the lead's law controls iff its unconstrained first input (with the
+    lead's predicted deceleration) is at most the free-driving law's."""
+    from acc_gym.drivers.mpc import Target
+
+    rng = np.random.default_rng(8)
+    checked = 0
+    for _ in range(200):
+        d = MPCDriver(preset("#57", v_desired=30.0))
+        v, vl, gap, al = rng.uniform(5, 30), rng.uniform(5, 30), rng.uniform(15, 120), rng.uniform(-4, -0.5)
+        up = rng.uniform(-0.5, 1.0)
+        d.act(Observation.build(v=v, a=up, gap=gap, v_lead=vl, a_lead=al))
+        if d.info["mode"][0] != Mode.ACCELERATE:
+            continue
+        p, fol, cru = d.params, d._qp_follow[0], d._qp_cruise[0]
+        theta = np.array([gap - p.x_min[0] - p.c_tg[0] * v, vl - v, up])
+        u_lead = fol.gain[0] @ theta + fol.gain_lead[0] @ d._aseq[0]
+        u_free = cru.gain[0] @ np.array([0.0, p.v_desired[0] - v, up])
+        expected = Target.LEAD if u_lead <= u_free else Target.CRUISE
+        assert d.info["target"][0] == expected
+        checked += 1
+    assert checked > 30
