@@ -176,7 +176,7 @@ def fill_target_rows(P, S, i, v, gap, v_lead, stop_gap, aseq, lower, upper):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _fast_violation(P, S, i, v, u, u_prev, lower0, upper0, env_lo, env_hi, rate, gap, v_lead, stop_gap, aseq):
+def _fast_violation(P, S, i, v, u, lower0, upper0, env_lo, env_hi, rate, gap, v_lead, stop_gap, aseq):
     """Largest violation of the plan ``u`` (s = 0), from the same quantities that
     :func:`fill_bounds` and :func:`fill_target_rows` write, without writing them (the
     unconstrained fast path never needs the bounds in memory)."""
@@ -670,7 +670,7 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
                 z += _lead_term(gain_lead, i, k, a_l, ks, a_part, n)
         u_unc[k] = z
     beta = P[i, C_BETA:C_BETA + K_TERM]
-    viol = _fast_violation(P, S, i, v, u_unc, up, lower0, upper0, env_lo, env_hi, rate, gap[i], v_lead[i],
+    viol = _fast_violation(P, S, i, v, u_unc, lower0, upper0, env_lo, env_hi, rate, gap[i], v_lead[i],
                            stop_gap[i], aseq[i])
     W[i, W_VIOL] = viol
     path = -1

@@ -182,7 +182,7 @@ def test_fast_check_equals_the_scan_of_the_written_bounds():
             w = d._W[i]
             lower0, upper0, env_lo, env_hi, rate = K.mode_limits(d._P, d._S, i, int(w[K.W_MODE_PRE]), v[i],
                                                                  d._u_prev[i], w[K.W_ANEED])
-            fast = K._fast_violation(d._P, d._S, i, v[i], u, d._u_prev[i], lower0, upper0, env_lo, env_hi, rate,
+            fast = K._fast_violation(d._P, d._S, i, v[i], u, lower0, upper0, env_lo, env_hi, rate,
                                      gap[i], d._last_arrays[3][i], stop[i], d._aseq[i])
             full = constraint_violation(np.append(u, 0.0), data["lower"], data["upper"], data["G"])
             assert max(fast, 0.0) == pytest.approx(full, abs=1e-9)  # full also counts s >= 0
