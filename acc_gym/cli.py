@@ -1,10 +1,18 @@
-"""Command line: ``acc-gym demo`` (the environments' commands join it later).
+"""Command line (the environments' commands join it later).
 
     acc-gym demo [--driver #57] [--speed 25] [--json]
 
 simulates an MPC human-like driver behind a lead that accelerates, cruises, brakes to a
 stop and pulls away, then prints what the driver did: its modes over time, the gaps it
 kept, its accelerations and jerk, and how its QPs were solved.
+
+    acc-gym scenarios [--family F]            list scenario ids
+    acc-gym scenarios ID [--seed S] [--json]  describe one (or print it as JSON)
+
+    acc-gym score TRACE.csv [--time-gap 1.5] [--set-speed V] [--literal] [--json]
+
+scores a recorded drive (columns ``t, v, a, gap, v_lead``; see
+:mod:`acc_gym.evaluation.trace`) by paper 003's criteria and prints the episode report.
 """
 
 from __future__ import annotations
@@ -89,14 +97,50 @@ def _print_demo(s: dict) -> None:
         print(f"(the driver kernel took {s['kernel_ready_s']:.1f} s to compile; numba caches it for later runs)")
 
 
+def _scenarios(args) -> str:
+    from acc_gym import scenarios
+
+    if args.id is None:
+        return "\n".join(scenarios.list_scenarios(args.family))
+    if args.json:
+        return scenarios.build(args.id, seed=args.seed, drivers=args.drivers).to_json(indent=1)
+    return scenarios.describe(args.id)
+
+
+def _score(args) -> str:
+    from acc_gym.evaluation import EgoTrace, ScoringConfig, score_episode
+
+    trace = EgoTrace.from_csv(args.trace, set_speed=args.set_speed, time_gap=args.time_gap)
+    report = score_episode(trace, ScoringConfig.literal() if args.literal else ScoringConfig())
+    return json.dumps(report.to_dict()) if args.json else report.summary()
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="acc-gym", description="acc_gym: test ACC controllers in simulation")
     sub = parser.add_subparsers(dest="command", required=True)
+    p_sc = sub.add_parser("scenarios", help="list scenario ids, or describe one")
+    p_sc.add_argument("id", nargs="?", help="a scenario id (omit to list them)")
+    p_sc.add_argument("--family", help="list only this family (singlelane, carfollowing, ncap, stopandgo)")
+    p_sc.add_argument("--seed", type=int, default=0, help="seed for --json")
+    p_sc.add_argument("--drivers", default="typical", help="surrounding drivers for --json")
+    p_sc.add_argument("--json", action="store_true", help="print the built scenario as JSON")
+    p_score = sub.add_parser("score", help="score a recorded drive (CSV) by paper 003's criteria")
+    p_score.add_argument("trace", help="CSV with columns t, v, a, gap, v_lead (optional a_lead, lead_id, a_y, d2, d3)")
+    p_score.add_argument("--time-gap", type=float, default=None, help="nominal time gap [s] (the reaction time tau1)")
+    p_score.add_argument("--set-speed", type=float, default=None, help="the ego's set speed [m/s]")
+    p_score.add_argument("--literal", action="store_true", help="paper 003's rules read literally")
+    p_score.add_argument("--json", action="store_true", help="print one JSON object")
     p_demo = sub.add_parser("demo", help="simulate an MPC human-like driver and print what it did")
     p_demo.add_argument("--driver", default="#57", help="paper 001 Table 4 preset: #23, #57, #61 or #13")
     p_demo.add_argument("--speed", type=float, default=25.0, help="the lead's cruise speed [m/s]")
     p_demo.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args(argv)
+    if args.command in ("scenarios", "score"):
+        try:
+            print(_scenarios(args) if args.command == "scenarios" else _score(args))
+        except (ValueError, OSError) as exc:
+            parser.error(str(exc))
+        return 0
     if args.command == "demo":
         try:
             summary = demo(args.driver, args.speed)

@@ -29,3 +29,35 @@ def test_demo_text_and_bad_arguments():
     bad = subprocess.run([sys.executable, "-m", "acc_gym.cli", "demo", "--speed", "nan"], capture_output=True,
                          text=True)
     assert bad.returncode == 2 and "--speed" in bad.stderr
+
+
+def test_scenarios_command_lists_describes_and_prints_json(capsys):
+    from acc_gym.scenarios import Scenario, build
+
+    assert main(["scenarios", "--family", "ncap"]) == 0
+    ids = capsys.readouterr().out.split()
+    assert len(ids) == 9 + 11 + 4 and "ncap/ccrb/6-40" in ids
+    assert main(["scenarios", "singlelane/2/cut-in"]) == 0
+    text = capsys.readouterr().out
+    assert "cuts in" in text and "lc_duration" in text
+    assert main(["scenarios", "carfollowing/90", "--seed", "4", "--json"]) == 0
+    assert Scenario.from_json(capsys.readouterr().out) == build("carfollowing/90", seed=4)
+
+
+def test_score_command_scores_a_recorded_csv(tmp_path, capsys):
+    import numpy as np
+
+    from acc_gym.evaluation import EgoTrace, score_episode
+
+    n = 60
+    tr = EgoTrace(t=np.arange(n) * 0.2, v=np.full(n, 20.0), a=np.zeros(n), gap=np.full(n, 32.0),
+                  v_lead=np.full(n, 20.0))
+    path = tmp_path / "drive.csv"
+    tr.to_csv(path)
+    assert main(["score", str(path), "--time-gap", "1.5", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    expected = score_episode(EgoTrace.from_csv(path, time_gap=1.5)).to_dict()
+    assert out == expected and out["qualified"]  # G = 2 m in (0, 6 m)
+    r = subprocess.run([sys.executable, "-m", "acc_gym.cli", "score", str(tmp_path / "missing.csv")],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "missing.csv" in r.stderr

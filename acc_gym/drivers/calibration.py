@@ -18,7 +18,6 @@ import numpy as np
 from acc_gym._validation import check_finite, check_positive
 from acc_gym.drivers.mpc import MPCDriver, MPCDriverParams, MPCSettings
 from acc_gym.simulation.profiles import SpeedProfile
-from acc_gym.simulation.rollout import simulate_column
 from acc_gym.vehicle import VehicleParams
 
 
@@ -43,6 +42,8 @@ def _simulate(q1, r1, base: MPCDriverParams, lead: SpeedProfile, v0: float, gap0
     x0 = np.tile([gap0 + length, 0.0], (B, 1))
     v_lead0 = float(lead.speed(0.0))
     prof = SpeedProfile(lead.times, np.tile(lead.speeds, (B, 1)))
+    from acc_gym.simulation.rollout import simulate_column  # here: simulation imports drivers
+
     tr = simulate_column(prof, [driver], x0, np.tile([v_lead0, v0], (B, 1)), duration=duration, dt=dt,
                          vehicle=vehicle, stop_position=stop_position, batch=B)
     return tr.v[:, :, 1].T

@@ -1,0 +1,329 @@
+"""Paper 003's 100-point score of a drive, with every open choice a validated setting.
+
+Table 3 of paper 003 (Yang et al. 2024): four qualitative items, each 15 points or
+"unqualified" -- safety (Q >= 0), car-following characteristic (0 < G < 0.2 Gapsafe),
+road edge (D2 > 0), boundary line (D3 > 0) -- and two quantitative ones, efficiency
+``R1 = (1 - u) 20`` and comfort ``R2 = (1 - j_x) 10 + (1 - j_y) 10``. If all four items
+qualify the score is ``60 + R1 + R2``, otherwise ``15 r`` for ``r`` qualified items.
+Indicators: :mod:`acc_gym.evaluation.indicators`.
+
+Why the defaults are not the literal reading
+--------------------------------------------
+Read literally (Q >= 0 at every sample) the safety item fails every follower when its
+leader brakes hard: Gapsafe charges a full reaction distance ``v1 tau1`` even while the
+follower is already braking, so Q dips below zero in any emergency stop, whatever the
+follower does (a prototype of paper 003's test failed Gipps, IDM and every ACC tuning
+that way). The paper's own figures are not consistent either: GM and fuzzy score 45 =
+band + D2 + D3 while failing safety, impossible if band and safety look at the same
+samples, and its comfort means (R2 of 2.4 to 4.8) need j_y > 0 or an unclipped j. The
+literal rules stay available (``ScoringConfig.literal()``); the defaults make the score
+discriminate -- a collision is never qualified, a well-tuned linear ACC qualifies on
+paper 003's test, a tailgater does not -- with these rules:
+
+* **Safety, proper response** (``safety="proper-response"``, after the proper response
+  of responsibility-sensitive safety): a collision (D1 <= 0) always fails; Q < 0 is
+  tolerated for ``response_time`` (default tau1) after it turns negative, and afterwards
+  only while the ego responds -- braking at ``response_decel`` (2 m/s^2) or harder, or
+  standing (speed <= ``stop_speed``) -- until Q >= 0 again. A follower that sits inside
+  Gapsafe without braking (a tailgater) fails; one that brakes firmly when its leader
+  stops does not. ``safety="literal"``: Q >= 0 at every sample with a vehicle ahead.
+* **Car-following band, share of steady following** (``band="steady-share"``): the band
+  judges the following *distance*, so it is checked on *car-following samples*: a vehicle
+  ahead at any distance (a follower cannot escape the band by hanging back out of sensor
+  range), both moving (speeds > ``moving_speed``), a relative speed within ``steady_dv``
+  (paper 004's car-following is following "with a steady velocity"), Gapsafe > 0, and at
+  least ``transient`` seconds after the start and after every change of the vehicle ahead.
+  The item qualifies if at least ``band_share`` (50 %) of them are in the band. If the test
+  has a *followable* vehicle ahead (moving, and not faster than the ego's set speed when
+  that is known) but the ego never follows it steadily (it hangs back at another speed),
+  the item fails; if there is never one (free flow, a stationary target, a lead that
+  drives away faster than the set speed) the item does not apply and counts as
+  qualified. ``band="literal"``: every sample with a vehicle ahead and Gapsafe > 0 must
+  be in the band.
+* Because Gapsafe's steady-state value is ``v tau1``, the band ``0 < G < 0.2 Gapsafe`` in
+  effect asks for a time gap between tau1 and 1.2 tau1. So ``tau1`` defaults to the
+  scenario's nominal time gap (``EgoTrace.time_gap``; 1.5 s when unknown).
+* ``b0 = b1 = 8 m/s^2``: the maximum deceleration of a passenger car on dry asphalt
+  (about 0.8 g; this package's vehicle model allows 0.87 g). Equal values make Gapsafe
+  ``v tau1`` in steady following, as the band's reading above assumes.
+* **Efficiency**: ``u`` is the mean of ``u_t`` over the car-following samples with each
+  ``u_t`` clipped to [0, 1] (``clip=True``): closer than Gapsafe counts as fully efficient
+  (safety judges it), beyond the band as not at all. When the band does not apply, ``u``
+  measures speed keeping instead over the samples with nothing to follow in view,
+  ``u_t = clip((v_set - v1) / (0.2 v_set), 0, 1)`` (the same 20 % band, below the set
+  speed); without a set speed or such samples it is undefined and R1 = 0.
+* **Comfort**: ``j_x = max |a_x| / 3 m/s^2`` and ``j_y = max |a_y| / 5 m/s^2`` over the
+  episode (paper 003's values), clipped to [0, 1] so that R2 stays in [0, 20].
+* **D2, D3**: the ego's contour distances to the road edge and to the boundary line must
+  stay positive at every sample (a longitudinal simulation keeps the ego in its lane, so
+  these pass unless a scripted lane change leaves the carriageway; they stay in the score
+  so totals compare with the paper's).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields
+
+import numpy as np
+
+from acc_gym.evaluation.indicators import comfort_j, efficiency_u, gap_safe, in_band, safety_q
+from acc_gym.evaluation.metrics import extra_metrics
+from acc_gym.evaluation.trace import EgoTrace
+
+DEFAULT_TAU1 = 1.5  # [s] when neither the config nor the trace gives one
+SAFETY_RULES = ("proper-response", "literal")
+BAND_RULES = ("steady-share", "literal")
+ITEM_POINTS = 15.0
+
+
+@dataclass(frozen=True)
+class ScoringConfig:
+    """Every choice paper 003 leaves open (see the module docstring for the reasons)."""
+
+    safety: str = "proper-response"  # or "literal"
+    band: str = "steady-share"  # or "literal"
+    tau1: float | None = None  # [s] ego reaction time; None: the trace's time gap, else 1.5
+    b0: float = 8.0  # [m/s^2] maximum deceleration of the vehicle ahead
+    b1: float = 8.0  # [m/s^2] maximum deceleration of the ego
+    response_decel: float = 2.0  # [m/s^2] braking that counts as a proper response
+    response_time: float | None = None  # [s] grace after Q turns negative; None: tau1
+    stop_speed: float = 0.5  # [m/s] at or below this the ego counts as standing
+    sensor_range: float = 200.0  # [m] beyond it nothing is "in view" (speed-keeping efficiency)
+    band_width: float = 0.2  # [-] the band's upper edge as a fraction of Gapsafe
+    band_share: float = 0.5  # [-] share of car-following samples that must be in the band
+    steady_dv: float = 1.0  # [m/s] |v0 - v1| of car-following samples
+    moving_speed: float = 1.0  # [m/s] both vehicles faster than this to count as following
+    transient: float = 5.0  # [s] skipped after the start and after a new vehicle ahead
+    clip: bool = True  # clip u_t and j to [0, 1]
+    a_x_comfort: float = 3.0  # [m/s^2] paper 003
+    a_y_comfort: float = 5.0  # [m/s^2] paper 003
+
+    def __post_init__(self) -> None:
+        if self.safety not in SAFETY_RULES:
+            raise ValueError(f"ScoringConfig.safety must be one of {SAFETY_RULES}, got {self.safety!r}")
+        if self.band not in BAND_RULES:
+            raise ValueError(f"ScoringConfig.band must be one of {BAND_RULES}, got {self.band!r}")
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name in ("safety", "band", "clip") or value is None:
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"ScoringConfig.{f.name} must be a finite number, got {value!r}")
+            positive = f.name in ("tau1", "b0", "b1", "band_width", "a_x_comfort", "a_y_comfort", "response_decel")
+            if positive and value <= 0:
+                raise ValueError(f"ScoringConfig.{f.name} must be > 0, got {value!r}")
+            if value < 0:
+                raise ValueError(f"ScoringConfig.{f.name} must be >= 0, got {value!r}")
+        if not 0.0 < self.band_share <= 1.0:
+            raise ValueError(f"ScoringConfig.band_share must be in (0, 1], got {self.band_share!r}")
+        if not isinstance(self.clip, bool):
+            raise ValueError(f"ScoringConfig.clip must be True or False, got {self.clip!r}")
+
+    @classmethod
+    def literal(cls, **changes) -> "ScoringConfig":
+        """Paper 003 read literally: Q >= 0 and the band at every sample, nothing clipped."""
+        return cls(**{"safety": "literal", "band": "literal", "clip": False, **changes})
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "ScoringConfig":
+        if not isinstance(d, dict):
+            raise ValueError(f"a scoring config must be a mapping, got {type(d).__name__}")
+        unknown = set(d) - {f.name for f in fields(cls)}
+        if unknown:
+            raise ValueError(f"unknown scoring setting(s) {sorted(unknown)}; known: {[f.name for f in fields(cls)]}")
+        return cls(**d)
+
+
+@dataclass(frozen=True)
+class ItemResult:
+    """One qualitative item of Table 3."""
+
+    name: str
+    requirement: str
+    qualified: bool
+    applicable: bool = True
+    detail: dict = field(default_factory=dict)
+
+    @property
+    def points(self) -> float:
+        return ITEM_POINTS if self.qualified else 0.0
+
+
+@dataclass(frozen=True)
+class EpisodeReport:
+    """The score of one episode with every indicator behind it."""
+
+    score: float  # [0, 100]
+    qualified: bool  # all four qualitative items qualified
+    items: tuple  # ItemResult: safety, car_following, road_edge, boundary_line
+    r1: float  # efficiency points [0, 20] (may leave the range with clip=False)
+    r2: float  # comfort points [0, 20]
+    u: float  # efficiency indicator
+    j_x: float
+    j_y: float
+    tau1: float  # [s] the reaction time used
+    metrics: dict  # extra metrics (acc_gym.evaluation.metrics)
+    config: ScoringConfig
+
+    def item(self, name: str) -> ItemResult:
+        for it in self.items:
+            if it.name == name:
+                return it
+        raise KeyError(name)
+
+    def to_dict(self) -> dict:
+        def clean(x):
+            if isinstance(x, dict):
+                return {k: clean(v) for k, v in x.items()}
+            if isinstance(x, (list, tuple)):
+                return [clean(v) for v in x]
+            if isinstance(x, (bool, np.bool_)):
+                return bool(x)
+            if isinstance(x, (int, np.integer)):
+                return int(x)
+            if isinstance(x, (float, np.floating)):
+                x = float(x)
+                return None if math.isnan(x) else (str(x) if math.isinf(x) else x)
+            return x
+
+        return clean({
+            "score": self.score, "qualified": self.qualified, "r1": self.r1, "r2": self.r2, "u": self.u,
+            "j_x": self.j_x, "j_y": self.j_y, "tau1": self.tau1,
+            "items": {it.name: {"qualified": it.qualified, "applicable": it.applicable, "points": it.points,
+                                "requirement": it.requirement, **it.detail} for it in self.items},
+            "metrics": self.metrics, "config": self.config.to_dict(),
+        })
+
+    def summary(self) -> str:
+        lines = [f"score {self.score:.1f} / 100 ({'qualified' if self.qualified else 'NOT qualified'})"]
+        for it in self.items:
+            state = "qualified" if it.qualified else "unqualified"
+            lines.append(f"  {it.name:<14} {it.requirement:<26} {state}{'' if it.applicable else ' (not applicable)'}")
+        lines.append(f"  efficiency     R1 = (1 - u) 20 = {self.r1:.2f}  (u = {self.u:.3f})")
+        lines.append(f"  comfort        R2 = {self.r2:.2f}  (j_x = {self.j_x:.3f}, j_y = {self.j_y:.3f})")
+        m = self.metrics
+        lines.append(f"  collision {m['collision']}, comfortable {m['share_comfortable']:.1%}, "
+                     f"safe spacing {m['share_safe_spacing']:.1%}, min TTC {m['min_ttc']:.2f} s, "
+                     f"max jerk {m['max_jerk']:.2f} m/s^3")
+        return "\n".join(lines)
+
+
+def _after_transients(trace: EgoTrace, transient: float) -> np.ndarray:
+    """True at samples at least ``transient`` s after the start and after any change of the vehicle ahead."""
+    t = trace.t
+    has = trace.has_lead
+    if trace.lead_id is not None:
+        ident = np.where(has, trace.lead_id, -1.0)
+        change = np.concatenate([[False], ident[1:] != ident[:-1]])
+    else:  # no identities: a new target shows as an appearing/disappearing vehicle or a gap jump
+        expected = (trace.v_lead - trace.v)[:-1] * np.diff(t)
+        jump = np.abs(np.diff(np.where(has, trace.gap, 0.0)) - np.where(has[:-1] & has[1:], expected, 0.0)) > 3.0
+        change = np.concatenate([[False], (has[1:] != has[:-1]) | (has[1:] & has[:-1] & jump)])
+    last_event = np.maximum.accumulate(np.where(change, t, t[0]))
+    return t - last_event >= transient
+
+
+def _proper_response_violations(t, q, seen, a, v, cfg: ScoringConfig, grace: float) -> np.ndarray:
+    """Samples where Q < 0 has outlasted the grace time without a proper response."""
+    neg = seen & (q < 0)
+    responding = (a <= -cfg.response_decel) | (v <= cfg.stop_speed)
+    start = np.concatenate([[True], ~neg[:-1]]) & neg
+    run_start = np.maximum.accumulate(np.where(start, np.arange(t.size), 0))
+    late = neg & (t - t[run_start] > grace)
+    return late & ~responding
+
+
+def score_episode(trace: EgoTrace, config: ScoringConfig | None = None) -> EpisodeReport:
+    """Score one episode (paper 003 Table 3 under ``config``; defaults: module docstring)."""
+    cfg = config if config is not None else ScoringConfig()
+    if not isinstance(trace, EgoTrace):
+        raise TypeError(f"score_episode needs an EgoTrace, got {type(trace).__name__}")
+    tau1 = cfg.tau1 if cfg.tau1 is not None else (trace.time_gap if trace.time_gap is not None else DEFAULT_TAU1)
+    has = trace.has_lead
+    d1 = np.where(has, trace.gap, np.inf)
+    v0 = np.where(has, trace.v_lead, 0.0)
+    gs = gap_safe(trace.v, v0, tau1, cfg.b0, cfg.b1)
+    q = safety_q(d1, gs)  # +inf without a vehicle ahead
+    seen = has
+
+    # safety
+    collision = bool(np.any(has & (trace.gap <= 0.0)))
+    if cfg.safety == "literal":
+        bad = seen & (q < 0)
+        safe_ok = not np.any(bad)
+        rule = "Q >= 0"
+    else:
+        grace = cfg.response_time if cfg.response_time is not None else tau1
+        bad = _proper_response_violations(trace.t, q, seen, trace.a, trace.v, cfg, grace) | (has & (trace.gap <= 0))
+        safe_ok = not np.any(bad) and not collision
+        rule = "Q >= 0 or proper response"
+    safety = ItemResult("safety", rule, bool(safe_ok), detail={
+        "violations": int(np.sum(bad)),
+        "first_violation_t": float(trace.t[np.argmax(bad)]) if np.any(bad) else None,
+        "min_q": float(np.min(q[seen])) if np.any(seen) else None,
+        "collision": collision})
+
+    # car-following band and efficiency
+    band = in_band(q, gs, cfg.band_width)
+    u_t = efficiency_u(q, gs, cfg.band_width, clip=cfg.clip)
+    moving = (trace.v > cfg.moving_speed) & (v0 > cfg.moving_speed)
+    too_fast = np.zeros(trace.n, dtype=bool) if trace.set_speed is None else v0 > trace.set_speed + cfg.steady_dv
+    followable = has & (v0 > cfg.moving_speed) & ~too_fast  # a vehicle ahead the ego could follow
+    free = ~(has & (trace.gap <= cfg.sensor_range)) | (has & too_fast)  # nothing in view to follow
+    if cfg.band == "literal":
+        candidates = seen & (gs > 0)
+        following = candidates
+        share_needed = 1.0
+    else:
+        settled = _after_transients(trace, cfg.transient)
+        candidates = followable & settled
+        following = candidates & moving & (np.abs(v0 - trace.v) <= cfg.steady_dv) & (gs > 0)
+        share_needed = cfg.band_share
+    applicable = bool(np.any(candidates))
+    if not applicable:
+        band_ok, share = True, float("nan")
+    elif not np.any(following):
+        band_ok, share = False, 0.0
+    else:
+        share = float(np.mean(band[following]))
+        band_ok = share >= share_needed - 1e-12
+    car_following = ItemResult("car_following", f"0 < G < {cfg.band_width:g} Gapsafe", bool(band_ok), applicable,
+                               {"share_in_band": share, "samples": int(np.sum(following)),
+                                "share_needed": share_needed})
+    if np.any(following):
+        u = float(np.mean(u_t[following]))
+    elif trace.set_speed is not None and not applicable and np.any(free):
+        u_speed = ((trace.set_speed - trace.v) / (cfg.band_width * trace.set_speed))[free]
+        u = float(np.mean(np.clip(u_speed, 0.0, 1.0) if cfg.clip else u_speed))
+    else:
+        u = float("nan")
+    r1 = 0.0 if math.isnan(u) else (1.0 - u) * 20.0
+
+    # lane items
+    d2, d3 = trace.edge_distance, trace.line_distance
+    edge = ItemResult("road_edge", "D2 > 0", bool(np.all(d2 > 0)), detail={"min_d2": float(d2.min())})
+    line = ItemResult("boundary_line", "D3 > 0", bool(np.all(d3 > 0)), detail={"min_d3": float(d3.min())})
+
+    # comfort
+    j_x = comfort_j(trace.a, cfg.a_x_comfort, clip=cfg.clip)
+    j_y = comfort_j(trace.lateral_accel, cfg.a_y_comfort, clip=cfg.clip)
+    r2 = (1.0 - j_x) * 10.0 + (1.0 - j_y) * 10.0
+
+    items = (safety, car_following, edge, line)
+    qualified = all(it.qualified for it in items)
+    score = 60.0 + r1 + r2 if qualified else ITEM_POINTS * sum(it.qualified for it in items)
+    metrics = extra_metrics(trace, q, seen, cfg.a_x_comfort)
+    return EpisodeReport(score=float(score), qualified=bool(qualified), items=items, r1=float(r1), r2=float(r2),
+                         u=u, j_x=float(j_x), j_y=float(j_y), tau1=float(tau1), metrics=metrics, config=cfg)
+
+
+def score_world(trace, scenarios, config: ScoringConfig | None = None) -> list[EpisodeReport]:
+    """Score the ego of every scene of a :class:`~acc_gym.simulation.single_lane.WorldTrace`."""
+    scenarios = list(scenarios)
+    if len(scenarios) != trace.x.shape[1]:
+        raise ValueError(f"{len(scenarios)} scenarios for a trace of {trace.x.shape[1]} scenes")
+    return [score_episode(EgoTrace.from_world(trace, b, sc), config) for b, sc in enumerate(scenarios)]

@@ -1,0 +1,167 @@
+"""What the evaluation needs of an episode: the ego's trace, from a simulation or a CSV file.
+
+An :class:`EgoTrace` holds 1-D arrays over samples: time, the ego's speed and
+acceleration, the bumper-to-bumper gap to the vehicle ahead (``inf`` where there is
+none) and that vehicle's speed. Optional: the vehicle ahead's acceleration and identity
+(to tell a new target after a cut-in from the old one), the ego's lateral acceleration
+and its contour distances to the road edge (``d2``) and the carriageway's boundary line
+(``d3``), and the scenario's set speed and nominal time gap.
+
+A recorded drive is enough: ``EgoTrace.from_csv(path)`` reads a CSV with a header and
+the columns ``t, v, a, gap, v_lead`` (optional ``a_lead, lead_id, a_y, d2, d3``); an empty
+``gap`` cell or ``inf`` means no vehicle ahead.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import numpy as np
+
+from acc_gym.simulation.single_lane import VEHICLE_WIDTH, Road
+
+REQUIRED_COLUMNS = ("t", "v", "a", "gap", "v_lead")
+OPTIONAL_COLUMNS = ("a_lead", "lead_id", "a_y", "d2", "d3")
+_LANE_CENTRED = Road(3.75, 1).d2(0.0, VEHICLE_WIDTH)  # [m] D2 = D3 of a lane-centred car, paper 003's road
+
+
+@dataclass(frozen=True)
+class EgoTrace:
+    """One episode as seen from the ego (arrays of shape ``(n,)``)."""
+
+    t: np.ndarray  # [s] strictly increasing
+    v: np.ndarray  # [m/s] ego speed (>= 0)
+    a: np.ndarray  # [m/s^2] ego longitudinal acceleration
+    gap: np.ndarray  # [m] bumper gap to the vehicle ahead (D1), inf: none
+    v_lead: np.ndarray  # [m/s] its speed (ignored where gap is inf)
+    a_lead: np.ndarray | None = None  # [m/s^2]
+    lead_id: np.ndarray | None = None  # identity of the vehicle ahead (-1: none)
+    a_y: np.ndarray | None = None  # [m/s^2] ego lateral acceleration (default 0)
+    d2: np.ndarray | None = None  # [m] contour to the road edge (default: lane-centred, 0.975)
+    d3: np.ndarray | None = None  # [m] contour to the boundary line (default 0.975)
+    set_speed: float | None = None  # [m/s] the ego's set speed
+    time_gap: float | None = None  # [s] the scenario's nominal time gap
+
+    def __post_init__(self) -> None:
+        n = None
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if value is None or f.name in ("set_speed", "time_gap"):
+                continue
+            arr = np.asarray(value, dtype=float)
+            if arr.ndim != 1:
+                raise ValueError(f"trace column {f.name!r} must be 1-D, got shape {arr.shape}")
+            if n is None:
+                n = arr.size
+            elif arr.size != n:
+                raise ValueError(f"trace column {f.name!r} has {arr.size} samples but 't' has {n}")
+            if np.any(np.isnan(arr)):
+                k = int(np.flatnonzero(np.isnan(arr))[0])
+                raise ValueError(f"trace column {f.name!r} is NaN at sample {k} (t index {k})")
+            if f.name == "gap":
+                if np.any(arr == -np.inf):
+                    raise ValueError("trace column 'gap' must not be -inf")
+            elif f.name == "v_lead":
+                arr = np.where(np.isfinite(np.asarray(self.gap, float)), arr, 0.0)
+                if not np.all(np.isfinite(arr)):
+                    raise ValueError("trace column 'v_lead' must be finite where a vehicle is ahead")
+            elif not np.all(np.isfinite(arr)):
+                raise ValueError(f"trace column {f.name!r} must be finite, got {arr[~np.isfinite(arr)][:3]}")
+            object.__setattr__(self, f.name, arr)
+        if n is None or n < 2:
+            raise ValueError(f"a trace needs at least 2 samples, got {n}")
+        if np.any(np.diff(self.t) <= 0):
+            k = int(np.flatnonzero(np.diff(self.t) <= 0)[0])
+            raise ValueError(f"trace column 't' must be strictly increasing (sample {k + 1}: {self.t[k + 1]!r} "
+                             f"after {self.t[k]!r})")
+        if np.any(self.v < 0):
+            raise ValueError(f"trace column 'v' (ego speed) must be >= 0, got {self.v.min()!r}")
+        for name in ("set_speed", "time_gap"):
+            value = getattr(self, name)
+            if value is not None and not (np.isfinite(value) and value > 0):
+                raise ValueError(f"trace {name} must be > 0, got {value!r}")
+
+    @property
+    def n(self) -> int:
+        return self.t.size
+
+    @property
+    def has_lead(self) -> np.ndarray:
+        return np.isfinite(self.gap)
+
+    @property
+    def lateral_accel(self) -> np.ndarray:
+        return np.zeros(self.n) if self.a_y is None else self.a_y
+
+    @property
+    def edge_distance(self) -> np.ndarray:
+        return np.full(self.n, _LANE_CENTRED) if self.d2 is None else self.d2
+
+    @property
+    def line_distance(self) -> np.ndarray:
+        return np.full(self.n, _LANE_CENTRED) if self.d3 is None else self.d3
+
+    # ------------------------------------------------------------------ sources
+    @classmethod
+    def from_world(cls, trace, b: int = 0, scenario=None) -> "EgoTrace":
+        """The ego (slot 0) of scene ``b`` of a :class:`~acc_gym.simulation.single_lane.WorldTrace`."""
+        lead = trace.lead[:, b, 0]
+        rows = np.arange(trace.t.size)
+        safe = np.maximum(lead, 0)
+        has = lead >= 0
+        v_lead = np.where(has, trace.v[rows, b, safe], 0.0)
+        a_lead = np.where(has, trace.a[rows, b, safe], 0.0)
+        road, width = trace.road, trace.width[b, 0]
+        y = trace.y[:, b, 0]
+        return cls(t=trace.t, v=trace.v[:, b, 0], a=trace.a[:, b, 0], gap=trace.gap[:, b, 0], v_lead=v_lead,
+                   a_lead=a_lead, lead_id=lead.astype(float), a_y=trace.a_y[:, b, 0],
+                   d2=road.d2(y, width), d3=road.d3(y, width),
+                   set_speed=None if scenario is None else scenario.set_speed,
+                   time_gap=None if scenario is None else scenario.time_gap)
+
+    @classmethod
+    def from_csv(cls, path, set_speed: float | None = None, time_gap: float | None = None) -> "EgoTrace":
+        """Read a CSV trace (see the module docstring)."""
+        path = Path(path)
+        with path.open(newline="") as fh:
+            reader = csv.DictReader(fh)
+            header = [h.strip() for h in (reader.fieldnames or [])]
+            missing = [c for c in REQUIRED_COLUMNS if c not in header]
+            if missing:
+                raise ValueError(f"{path}: missing column(s) {missing}; a trace needs {list(REQUIRED_COLUMNS)}")
+            unknown = [c for c in header if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
+            if unknown:
+                raise ValueError(f"{path}: unknown column(s) {unknown}")
+            cols: dict[str, list[float]] = {c: [] for c in header}
+            for line, row in enumerate(reader, start=2):
+                for raw_key, cell in row.items():
+                    if raw_key is None:
+                        raise ValueError(f"{path}, line {line}: more cells than columns")
+                    key = raw_key.strip()
+                    text = (cell or "").strip()
+                    if text == "" and key in ("gap", "v_lead", "a_lead", "lead_id"):
+                        value = {"gap": np.inf, "lead_id": -1.0}.get(key, 0.0)
+                    else:
+                        try:
+                            value = float(text)
+                        except ValueError:
+                            raise ValueError(f"{path}, line {line}: column {key!r} is not a number: {text!r}") from None
+                        if np.isnan(value):
+                            raise ValueError(f"{path}, line {line}: column {key!r} is NaN")
+                    cols[key].append(value)
+        return cls(**{k: np.array(v) for k, v in cols.items()}, set_speed=set_speed, time_gap=time_gap)
+
+    def to_csv(self, path) -> None:
+        """Write the trace as CSV (``inf`` gaps as empty cells)."""
+        names = list(REQUIRED_COLUMNS) + [c for c in OPTIONAL_COLUMNS if getattr(self, c) is not None]
+        with Path(path).open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(names)
+            for k in range(self.n):
+                row = []
+                for c in names:
+                    value = getattr(self, c)[k]
+                    row.append("" if (c == "gap" and not np.isfinite(value)) else repr(float(value)))
+                w.writerow(row)

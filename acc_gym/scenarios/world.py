@@ -1,0 +1,111 @@
+"""Turn scenarios into a running :class:`~acc_gym.simulation.single_lane.SingleLaneWorld`.
+
+``make_world(scenarios)`` builds one world for a batch of scenarios (same step ``dt``):
+slot 0 the ego, slot 1 the POV, slot 2 the POV2 (absent where a scenario has none). The
+surrounding drivers of each slot are grouped by model, so all MPC drivers of a slot
+are one batched :class:`~acc_gym.drivers.mpc.MPCDriver` whatever mix of scenarios the
+batch holds. ``simulate(scenario, ego)`` runs one scenario with an ego model to its end.
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields
+
+import numpy as np
+
+from acc_gym.drivers.baselines import MODELS
+from acc_gym.drivers.mpc import MPCDriver, MPCDriverParams, MPCSettings
+from acc_gym.drivers.scripted import DriverGroup, ProfileDriver
+from acc_gym.scenarios.spec import ROLES, Scenario
+from acc_gym.simulation.single_lane import LateralPlan, SingleLaneWorld, WorldTrace, rollout
+from acc_gym.vehicle import VehicleParams
+
+ABSENT_X = -1.0e6  # [m] where absent vehicles are parked (never anyone's target)
+
+
+def _stack_params(cls, objs):
+    values = {}
+    for f in fields(cls):
+        vals = [getattr(o, f.name) for o in objs]
+        if all(v is None for v in vals):
+            values[f.name] = None
+        elif isinstance(vals[0], (int, np.integer)) and not isinstance(vals[0], bool) and f.name == "predecessors":
+            values[f.name] = int(vals[0])
+        else:
+            values[f.name] = np.array([float(np.asarray(v, float)) for v in vals])
+    return cls(**values)
+
+
+def _slot_driver(specs, dt: float, mpc_settings: MPCSettings | None):
+    """One model over the batch for a slot: ``specs[b]`` is a DriverSpec or None (absent)."""
+    B = len(specs)
+    groups: dict[str, list[int]] = {}
+    for b, spec in enumerate(specs):
+        if spec is not None:
+            groups.setdefault(spec.model, []).append(b)
+    if not groups:
+        return None
+    parts = []
+    for model, idx in groups.items():
+        if model == "mpc":
+            params = MPCDriverParams.stack([specs[b].params_object() for b in idx])
+            settings = mpc_settings if mpc_settings is not None else MPCSettings(dt=dt)
+            if settings.dt != dt:
+                raise ValueError(f"MPC settings dt={settings.dt} differs from the scenarios' dt={dt}")
+            parts.append((MPCDriver(params, n=len(idx), settings=settings), idx))
+        elif model == "profile":
+            for b in idx:
+                parts.append((ProfileDriver(specs[b].profile(), n=1, dt=dt), [b]))
+        else:
+            cls = MODELS[model]
+            params = _stack_params(cls.params_type, [specs[b].params_object() for b in idx])
+            parts.append((cls(params, n=len(idx), dt=dt), idx))
+    return DriverGroup(parts, B)
+
+
+def make_world(scenarios, *, ego=None, mpc_settings: MPCSettings | None = None,
+               sensor_range: float | None = None) -> SingleLaneWorld:
+    """One world stepping ``scenarios`` together (``ego``: optional model for slot 0, ``n == B``)."""
+    scenarios = [scenarios] if isinstance(scenarios, Scenario) else list(scenarios)
+    if not scenarios:
+        raise ValueError("make_world needs at least one scenario")
+    dts = {s.dt for s in scenarios}
+    if len(dts) != 1:
+        raise ValueError(f"scenarios in one world must share dt, got {sorted(dts)}")
+    roads = {s.road for s in scenarios}
+    if len(roads) != 1:
+        raise ValueError("scenarios in one world must share the road geometry")
+    dt = dts.pop()
+    road = roads.pop()
+    B, S = len(scenarios), len(ROLES)
+    x0 = np.full((B, S), ABSENT_X)
+    v0 = np.zeros((B, S))
+    present = np.zeros((B, S), dtype=bool)
+    y0 = np.zeros((B, S))
+    y1 = np.zeros((B, S))
+    t_start = np.zeros((B, S))
+    dur = np.ones((B, S))
+    length = np.full((B, S), 4.7)
+    width = np.full((B, S), 1.8)
+    specs = [[None] * B for _ in range(S)]
+    for b, sc in enumerate(scenarios):
+        for v in sc.vehicles:
+            s = ROLES.index(v.role)
+            present[b, s] = True
+            x0[b, s], v0[b, s] = v.x0, v.v0
+            y0[b, s] = y1[b, s] = road.lane_centre(v.lane)
+            if v.lane_change is not None:
+                y1[b, s] = road.lane_centre(v.lane_change.to_lane)
+                t_start[b, s], dur[b, s] = v.lane_change.t_start, v.lane_change.duration
+            length[b, s], width[b, s] = v.length, v.width
+            specs[s][b] = v.driver
+    drivers = [ego] + [_slot_driver(specs[s], dt, mpc_settings) for s in range(1, S)]
+    kwargs = {} if sensor_range is None else {"sensor_range": sensor_range}
+    return SingleLaneWorld(x0, v0, drivers, present=present, lateral=LateralPlan(y0, y1, t_start, dur),
+                           vehicle=VehicleParams(length=length), width=width, road=road, dt=dt, **kwargs)
+
+
+def simulate(scenario: Scenario, ego, **kwargs) -> WorldTrace:
+    """Run ``scenario`` to its end with the ego driven by model ``ego`` (``n == 1``)."""
+    world = make_world([scenario], **kwargs)
+    return rollout(world, scenario.steps, ego=ego)

@@ -1,0 +1,355 @@
+"""A single-lane traffic world: the ego and up to a few surrounding vehicles, with lane entries and exits.
+
+Paper 004's single-lane scenario has at most three vehicles: the subject vehicle (SV,
+the ego, slot 0), the primary other vehicle ahead (POV, slot 1) and a second one
+(POV2, slot 2). Cut-ins, cut-outs and lane changes are *longitudinal* events for the
+vehicles behind: a vehicle enters or leaves the lane ahead of them at some gap and speed.
+This module simulates ``B`` such scenes at once as ``(B, S)`` arrays (``S`` slots).
+
+Geometry (decided here; see :class:`Road`): lanes of width ``lane_width`` numbered 0
+(rightmost) to ``n_lanes - 1``; lateral coordinate ``y`` [m] is the vehicle centre's
+offset from lane 0's centre line. Lateral motion is scripted (the controllers under test
+are longitudinal): each vehicle has a :class:`LateralPlan`, a half-cosine move from
+``y0`` to ``y1`` starting at ``t_start`` and lasting ``duration`` [s], whose peak
+lateral acceleration is ``|y1 - y0| pi^2 / (2 duration^2)``.
+
+*Who is ahead* (decided here): for each vehicle, the nearest vehicle whose front bumper is
+ahead of its own and whose contour overlaps its lane corridor -- a band of one lane width
+centred on the vehicle -- that is ``|y_j - y_i| < (lane_width + width_j) / 2``. So a
+cutting-in vehicle becomes the target as soon as its contour crosses the lane line, and
+stays one until its contour has left the lane entirely on a cut-out (conservative, as
+an ACC's target selection should be). The same rule serves the ego during its own
+lane change (its corridor moves with it) and the surrounding drivers.
+
+Each step has two phases: every model decides from the same snapshot, then every
+vehicle moves (exact integration, no reversing; :mod:`acc_gym.vehicle`). Slot 0 is
+driven by the caller's action (or by a model); the other slots by driver models that
+each control one vehicle per scene (``n == B``, e.g. a
+:class:`~acc_gym.drivers.scripted.DriverGroup`). Absent vehicles (``present`` false) are
+never anyone's target and do not move.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from acc_gym._validation import check_finite, check_nonnegative, check_positive
+from acc_gym.drivers.base import Observation
+from acc_gym.vehicle import VehicleParams, applied_acceleration, integrate
+
+DEFAULT_SENSOR_RANGE = 200.0  # [m] an ACC radar's range (paper 004: "about 200 m")
+VEHICLE_WIDTH = 1.8  # [m]
+
+
+@dataclass(frozen=True)
+class Road:
+    """Straight road: ``n_lanes`` lanes in the direction of travel, lane 0 the rightmost.
+
+    ``D2`` (paper 003) is the distance from a vehicle's contour to the road edge (the
+    right edge of lane 0); ``D3`` the distance to the carriageway's boundary line (the
+    left edge of the leftmost lane, the centre line on a two-way road). A lane change
+    within the carriageway keeps both positive.
+    """
+
+    lane_width: float = 3.75  # [m] paper 003 Table 2
+    n_lanes: int = 2  # [-]
+    length: float = float("inf")  # [m] (informational: where the road ends)
+
+    def __post_init__(self) -> None:
+        check_positive("Road.lane_width", self.lane_width)
+        if int(self.n_lanes) != self.n_lanes or self.n_lanes < 1:
+            raise ValueError(f"Road.n_lanes must be a positive integer, got {self.n_lanes!r}")
+        if not self.length > 0:
+            raise ValueError(f"Road.length must be > 0, got {self.length!r}")
+
+    def lane_centre(self, lane) -> np.ndarray:
+        return np.asarray(lane, dtype=float) * self.lane_width
+
+    def d2(self, y, width=VEHICLE_WIDTH):
+        """Contour to the road edge [m]."""
+        return np.asarray(y) + 0.5 * self.lane_width - 0.5 * np.asarray(width)
+
+    def d3(self, y, width=VEHICLE_WIDTH):
+        """Contour to the carriageway's boundary line [m]."""
+        return (self.n_lanes - 0.5) * self.lane_width - np.asarray(y) - 0.5 * np.asarray(width)
+
+
+@dataclass(frozen=True)
+class LateralPlan:
+    """Scripted lateral moves, arrays broadcastable to ``(B, S)``: half-cosine from ``y0`` to ``y1``."""
+
+    y0: np.ndarray  # [m] lateral position before the move
+    y1: np.ndarray  # [m] after
+    t_start: np.ndarray  # [s]
+    duration: np.ndarray  # [s] > 0
+
+    def __post_init__(self) -> None:
+        for name in ("y0", "y1", "t_start", "duration"):
+            value = np.asarray(getattr(self, name), dtype=float)
+            check_finite(f"LateralPlan.{name}", value)
+            object.__setattr__(self, name, value)
+        check_positive("LateralPlan.duration", self.duration)
+
+    @classmethod
+    def still(cls, y) -> "LateralPlan":
+        y = np.asarray(y, dtype=float)
+        return cls(y, y, np.zeros_like(y), np.ones_like(y))
+
+    def _phase(self, t):
+        return np.clip((t - self.t_start) / self.duration, 0.0, 1.0)
+
+    def position(self, t) -> np.ndarray:
+        s = self._phase(t)
+        return self.y0 + (self.y1 - self.y0) * 0.5 * (1.0 - np.cos(np.pi * s))
+
+    def acceleration(self, t) -> np.ndarray:
+        s = self._phase(t)
+        moving = (s > 0.0) & (s < 1.0)
+        return np.where(moving, (self.y1 - self.y0) * 0.5 * (np.pi / self.duration) ** 2 * np.cos(np.pi * s), 0.0)
+
+    def peak_acceleration(self) -> np.ndarray:
+        """``|y1 - y0| pi^2 / (2 duration^2)`` [m/s^2]."""
+        return np.abs(self.y1 - self.y0) * np.pi ** 2 / (2.0 * self.duration ** 2)
+
+
+def _as_bs(value, B: int, S: int, name: str, dtype=float) -> np.ndarray:
+    arr = np.asarray(value, dtype=dtype)
+    try:
+        arr = np.broadcast_to(arr, (B, S)).copy()
+    except ValueError:
+        raise ValueError(f"{name} must broadcast to ({B}, {S}), got shape {np.shape(value)}") from None
+    if dtype is float:
+        check_finite(name, arr)
+    return arr
+
+
+@dataclass
+class Neighbours:
+    """For each vehicle ``(B, S)``: the vehicle ahead (``-1``: none) and the one after it."""
+
+    lead: np.ndarray  # int slot, -1 none
+    gap: np.ndarray  # [m] bumper to bumper, inf none (regardless of sensor range)
+    lead2: np.ndarray
+    gap2: np.ndarray
+
+
+class SingleLaneWorld:
+    """``B`` single-lane scenes of ``S`` vehicles (slot 0 the ego), stepped together.
+
+    Parameters
+    ----------
+    x0, v0: initial front-bumper positions [m] and speeds [m/s], broadcastable to ``(B, S)``.
+    drivers: one entry per slot; ``drivers[0]`` is ``None`` when the ego is driven by the
+        caller's actions, other entries are models with ``n == B`` (``None`` for a slot
+        absent from every scene).
+    present: which vehicles exist, ``(B, S)`` bool (default: all).
+    lateral: the scripted lateral moves (default: everyone keeps lane 0).
+    vehicle: vehicle parameters, fields broadcastable to ``(B, S)``.
+    width: vehicle widths [m].
+    road: the road geometry.
+    dt: step [s].
+    sensor_range: vehicles further ahead are not seen (``gap = inf`` in observations).
+    a0: initial accelerations [m/s^2].
+    """
+
+    def __init__(self, x0, v0, drivers, *, present=None, lateral: LateralPlan | None = None,
+                 vehicle: VehicleParams | None = None, width=VEHICLE_WIDTH, road: Road | None = None,
+                 dt: float = 0.2, sensor_range: float = DEFAULT_SENSOR_RANGE, a0=None):
+        check_positive("dt", dt)
+        if not sensor_range > 0:
+            raise ValueError(f"sensor_range must be > 0, got {sensor_range!r}")
+        x_arr = np.asarray(x0, dtype=float)
+        if x_arr.ndim != 2:
+            raise ValueError(f"x0 must have shape (B, S), got {x_arr.shape}")
+        B, S = x_arr.shape
+        self.B, self.S = B, S
+        self.drivers = list(drivers)
+        if len(self.drivers) != S:
+            raise ValueError(f"drivers must have one entry per slot ({S}), got {len(self.drivers)}")
+        for s, model in enumerate(self.drivers):
+            if model is not None and getattr(model, "n", None) != B:
+                raise ValueError(f"driver of slot {s} controls n={getattr(model, 'n', None)} vehicles; "
+                                 f"it must control one per scene (n={B})")
+        self.x0 = _as_bs(x0, B, S, "x0")
+        self.v0 = _as_bs(v0, B, S, "v0")
+        check_nonnegative("v0", self.v0)
+        self.a0 = _as_bs(0.0 if a0 is None else a0, B, S, "a0")
+        self.present = _as_bs(True if present is None else present, B, S, "present", dtype=bool)
+        self.road = road if road is not None else Road()
+        self.lateral = lateral if lateral is not None else LateralPlan.still(np.zeros((B, S)))
+        self.width = _as_bs(width, B, S, "width")
+        check_positive("width", self.width)
+        self.vehicle = vehicle if vehicle is not None else VehicleParams()
+        self.lengths = _as_bs(self.vehicle.length, B, S, "vehicle.length")
+        self.dt = float(dt)
+        self.sensor_range = float(sensor_range)
+        self.reset()
+        self._check_apart()
+
+    def _check_apart(self) -> None:
+        """Vehicles sharing a lane corridor must not overlap lengthwise at the start."""
+        x, rear = self.x, self.x - self.lengths
+        both = self.present[:, None, :] & self.present[:, :, None] & ~np.eye(self.S, dtype=bool)
+        half = 0.5 * (self.road.lane_width + self.width[:, None, :])
+        corridor = np.abs(self.y[:, None, :] - self.y[:, :, None]) < half
+        overlap = (rear[:, :, None] < x[:, None, :]) & (rear[:, None, :] < x[:, :, None])
+        bad = np.argwhere(both & corridor & overlap)
+        if bad.size:
+            b, i, j = bad[0]
+            raise ValueError(f"vehicles must start apart: in scene {b}, slots {i} and {j} overlap "
+                             f"(front bumpers at {x[b, i]:.2f} m and {x[b, j]:.2f} m, lengths "
+                             f"{self.lengths[b, i]:.2f} and {self.lengths[b, j]:.2f} m)")
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        """Back to the initial state; models are reset too."""
+        self.k = 0
+        self.x = self.x0.copy()
+        self.v = np.where(self.present, self.v0, 0.0)
+        self.a = np.where(self.present, self.a0, 0.0)
+        self.a_des = np.full((self.B, self.S), np.nan)
+        self.collided = np.zeros((self.B, self.S), dtype=bool)  # sticky: ever gap <= 0
+        for model in self.drivers:
+            if model is not None and hasattr(model, "reset"):
+                model.reset()
+        self._update_lateral()
+        self.neighbours = self._neighbours()
+
+    @property
+    def t(self) -> float:
+        return self.k * self.dt
+
+    def _update_lateral(self) -> None:
+        self.y = np.broadcast_to(self.lateral.position(self.t), (self.B, self.S)).copy()
+        self.a_y = np.broadcast_to(self.lateral.acceleration(self.t), (self.B, self.S)).copy()
+
+    def _neighbours(self) -> Neighbours:
+        x, y = self.x, self.y
+        gap = (x - self.lengths)[:, None, :] - x[:, :, None]  # [b, i, j]: i's front to j's rear
+        ahead = x[:, None, :] > x[:, :, None]
+        both = self.present[:, None, :] & self.present[:, :, None]
+        corridor = np.abs(y[:, None, :] - y[:, :, None]) < 0.5 * (self.road.lane_width + self.width[:, None, :])
+        g = np.where(ahead & both & corridor, gap, np.inf)
+        order = np.argsort(g, axis=2, kind="stable")
+        first = np.take_along_axis(g, order[..., :1], axis=2)[..., 0]
+        lead = np.where(np.isfinite(first), order[..., 0], -1)
+        if self.S > 1:
+            second = np.take_along_axis(g, order[..., 1:2], axis=2)[..., 0]
+            lead2 = np.where(np.isfinite(second), order[..., 1], -1)
+        else:
+            second = np.full_like(first, np.inf)
+            lead2 = np.full_like(lead, -1)
+        return Neighbours(lead=lead, gap=first, lead2=lead2, gap2=second)
+
+    def observe(self, slot: int) -> Observation:
+        """What the vehicles of ``slot`` (one per scene) see now (sensor range applied)."""
+        nb = self.neighbours
+        rows = np.arange(self.B)
+
+        def pick(arr, idx):
+            return np.where(idx >= 0, arr[rows, np.maximum(idx, 0)], 0.0)
+
+        lead, lead2 = nb.lead[:, slot], nb.lead2[:, slot]
+        gap = np.where(nb.gap[:, slot] <= self.sensor_range, nb.gap[:, slot], np.inf)
+        gap2 = np.where(np.isfinite(gap) & (nb.gap2[:, slot] <= self.sensor_range), nb.gap2[:, slot], np.inf)
+        return Observation(v=self.v[:, slot].copy(), a=self.a[:, slot].copy(), gap=gap,
+                           v_lead=pick(self.v, lead), a_lead=pick(self.a, lead),
+                           gap2=gap2, v_lead2=pick(self.v, lead2), a_lead2=pick(self.a, lead2))
+
+    # ------------------------------------------------------------------ dynamics
+    def step(self, ego_a_des=None) -> None:
+        """Advance one step: every driver decides from the current snapshot, then all move.
+
+        ``ego_a_des`` [m/s^2], shape ``(B,)`` (or scalar), is the ego's desired
+        acceleration; it is required when slot 0 has no model.
+        """
+        a_des = np.zeros((self.B, self.S))
+        for s, model in enumerate(self.drivers):
+            if s == 0 and ego_a_des is not None:
+                ego = np.broadcast_to(np.asarray(ego_a_des, dtype=float), (self.B,))
+                check_finite("ego_a_des", ego)
+                a_des[:, 0] = ego
+            elif model is not None:
+                a_des[:, s] = model.act(self.observe(s))
+            elif s == 0:
+                raise ValueError("the ego has no model: pass ego_a_des to step()")
+        a_des = np.where(self.present, a_des, 0.0)
+        a = applied_acceleration(a_des, self.v, self.vehicle)
+        a = np.where(self.present, a, 0.0)
+        self.x, self.v = integrate(self.x, self.v, a, self.dt)
+        self.a, self.a_des = a, a_des
+        self.k += 1
+        self._update_lateral()
+        self.neighbours = self._neighbours()
+        self.collided |= self.neighbours.gap <= 0.0
+
+    def driver_info(self, slot: int) -> dict:
+        model = self.drivers[slot]
+        return dict(getattr(model, "info", None) or {}) if model is not None else {}
+
+
+@dataclass
+class WorldTrace:
+    """A recorded world: arrays ``(T+1, B, S)`` (row 0 the initial state; row ``k`` after step ``k``)."""
+
+    t: np.ndarray  # (T+1,) [s]
+    x: np.ndarray  # [m] front bumper
+    v: np.ndarray  # [m/s]
+    a: np.ndarray  # [m/s^2] applied over the step ending at row k
+    a_des: np.ndarray  # [m/s^2] asked for
+    y: np.ndarray  # [m] lateral position
+    a_y: np.ndarray  # [m/s^2] lateral acceleration
+    lead: np.ndarray  # int slot ahead, -1 none
+    gap: np.ndarray  # [m] bumper gap to it (inf none)
+    mode: np.ndarray  # driver mode (-1 none)
+    present: np.ndarray  # (B, S)
+    lengths: np.ndarray  # (B, S) [m]
+    width: np.ndarray  # (B, S) [m]
+    road: Road = field(default_factory=Road)
+    solver_stats: dict = field(default_factory=dict)
+
+    @property
+    def collided(self) -> np.ndarray:
+        """``(B, S)``: did the vehicle's gap to the one ahead ever reach 0."""
+        return np.any(self.gap <= 0.0, axis=0)
+
+
+def rollout(world: SingleLaneWorld, steps: int, ego=None) -> WorldTrace:
+    """Reset ``world`` and run it ``steps`` steps; the ego is driven by model ``ego`` (``n == B``)
+    if given, else by ``world.drivers[0]``."""
+    if int(steps) != steps or steps < 0:
+        raise ValueError(f"steps must be a non-negative integer, got {steps!r}")
+    if ego is not None and getattr(ego, "n", None) != world.B:
+        raise ValueError(f"ego model controls n={getattr(ego, 'n', None)} vehicles; it must control B={world.B}")
+    world.reset()
+    if ego is not None and hasattr(ego, "reset"):
+        ego.reset()
+    T = int(steps)
+    shape = (T + 1, world.B, world.S)
+    rec = {k: np.zeros(shape) for k in ("x", "v", "a", "a_des", "y", "a_y", "gap")}
+    rec["lead"] = np.zeros(shape, dtype=np.int64)
+    rec["mode"] = np.full(shape, -1, dtype=np.int64)
+    rec["a_des"][0] = np.nan
+
+    def record(k):
+        for key in ("x", "v", "a", "y", "a_y"):
+            rec[key][k] = getattr(world, key)
+        rec["gap"][k] = world.neighbours.gap
+        rec["lead"][k] = world.neighbours.lead
+
+    record(0)
+    for k in range(1, T + 1):
+        world.step(None if ego is None else ego.act(world.observe(0)))
+        record(k)
+        rec["a_des"][k] = world.a_des
+        for s in range(world.S):
+            model = ego if (s == 0 and ego is not None) else world.drivers[s]
+            info = getattr(model, "info", None) or {}
+            if "mode" in info:
+                rec["mode"][k, :, s] = info["mode"]
+    stats = {s: m.stats for s, m in enumerate(world.drivers) if m is not None and getattr(m, "stats", None)}
+    return WorldTrace(t=np.arange(T + 1) * world.dt, **rec, present=world.present.copy(),
+                      lengths=world.lengths.copy(), width=world.width.copy(), road=world.road,
+                      solver_stats=stats)
