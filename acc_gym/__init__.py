@@ -11,3 +11,7 @@ test, NCAP-style tests, stop-and-go, Monte Carlo traffic); and the evaluation
 """
 
 __version__ = "0.1.0"
+
+from acc_gym.envs.registration import register_envs as _register_envs  # noqa: E402  (cheap: ids only)
+
+_register_envs()

@@ -49,6 +49,20 @@ def check_nonnegative(name: str, value) -> None:
         raise ValueError(f"{name} must be >= 0, got {value!r}")
 
 
+def from_mapping(cls, d, what: str):
+    """``cls(**d)`` for a dataclass, with a ``ValueError`` naming any unknown key (a misspelt
+    setting is an error, unlike a dict update)."""
+    from dataclasses import fields
+
+    if not isinstance(d, dict):
+        raise ValueError(f"{what} must be a mapping, got {type(d).__name__}")
+    known = [f.name for f in fields(cls)]
+    unknown = set(d) - set(known)
+    if unknown:
+        raise ValueError(f"unknown {what} setting(s) {sorted(unknown)}; known: {known}")
+    return cls(**d)
+
+
 def check_shape(name: str, value, shape: tuple) -> np.ndarray:
     """Return ``value`` as a float array, raising ``ValueError`` if its shape differs."""
     arr = np.asarray(value, dtype=float)

@@ -1,6 +1,17 @@
-"""Command line (the environments' commands join it later).
+"""Command line.
 
-    acc-gym demo [--driver #57] [--speed 25] [--json]
+    acc-gym demo [--scenario carfollowing/90] [--controller acc] [--seed 0] [--plot demo.png] [--json]
+
+runs one episode of a built-in scenario with a simple controller (the linear ACC), prints
+the episode report (paper 003's score and the extra metrics) and saves the episode plot.
+
+    acc-gym evaluate CONTROLLER [--env acc_gym/CarFollowing-v0] [--episodes 10] [--seed 0] [--json]
+
+scores a controller (a built-in name, or ``module:attribute`` naming an object with
+``predict(obs, deterministic=True)``) and prints the mean score, the share qualified,
+collisions and the extra metrics.
+
+    acc-gym driver-demo [--driver #57] [--speed 25] [--json]
 
 simulates an MPC human-like driver behind a lead that accelerates, cruises, brakes to a
 stop and pulls away, then prints what the driver did: its modes over time, the gaps it
@@ -37,8 +48,8 @@ def _segments(mode: np.ndarray, t: np.ndarray) -> list[tuple[str, float, float]]
     return out
 
 
-def demo(driver: str = "#57", speed: float = 25.0) -> dict:
-    """Run the demo episode and return its summary (what ``acc-gym demo --json`` prints)."""
+def driver_demo(driver: str = "#57", speed: float = 25.0) -> dict:
+    """Run the MPC driver demo and return its summary (what ``acc-gym driver-demo --json`` prints)."""
     from acc_gym.drivers.mpc import MPCDriver, SolvePath, preset
     from acc_gym.simulation.profiles import SpeedProfile
     from acc_gym.simulation.rollout import simulate_column
@@ -81,7 +92,31 @@ def demo(driver: str = "#57", speed: float = 25.0) -> dict:
     }
 
 
-def _print_demo(s: dict) -> None:
+def demo(scenario: str = "carfollowing/90", controller: str = "acc", seed: int = 0, plot: str | None = None) -> dict:
+    """One episode of ``scenario`` with ``controller``; returns the final info (report included)."""
+    import gymnasium as gym
+
+    import acc_gym  # noqa: F401  (registers the ids)
+    from acc_gym.evaluation.runner import run_episode
+    from acc_gym.scenarios import scenario_type
+
+    family = scenario_type(scenario).family
+    env = gym.make("acc_gym/CarFollowing-v0", scenarios=(scenario,), drivers="typical")
+    t0 = time.perf_counter()
+    info, trace = run_episode(env, controller, seed=seed, scenario=scenario)
+    wall = time.perf_counter() - t0
+    out = {"scenario": info["scenario"], "family": family, "controller": controller, "score": info["score"],
+           "qualified": info["qualified"], "report": info["report"], "wall_time_s": wall, "plot": None}
+    if plot:
+        from acc_gym.plotting import plot_episode
+
+        plot_episode(trace, 0, title=f"{info['scenario']} - {controller}: score {info['score']:.1f}", path=plot)
+        out["plot"] = str(plot)
+    env.close()
+    return out
+
+
+def _print_driver_demo(s: dict) -> None:
     print(f"MPC human-like driver {s['driver']} behind a lead that accelerates, cruises, brakes to a stop "
           f"and pulls away ({s['duration_s']:.0f} s at 5 Hz)")
     print("modes:")
@@ -130,10 +165,23 @@ def main(argv=None) -> int:
     p_score.add_argument("--set-speed", type=float, default=None, help="the ego's set speed [m/s]")
     p_score.add_argument("--literal", action="store_true", help="paper 003's rules read literally")
     p_score.add_argument("--json", action="store_true", help="print one JSON object")
-    p_demo = sub.add_parser("demo", help="simulate an MPC human-like driver and print what it did")
-    p_demo.add_argument("--driver", default="#57", help="paper 001 Table 4 preset: #23, #57, #61 or #13")
-    p_demo.add_argument("--speed", type=float, default=25.0, help="the lead's cruise speed [m/s]")
+    p_demo = sub.add_parser("demo", help="run one episode of a built-in scenario, print its score, save its plot")
+    p_demo.add_argument("--scenario", default="carfollowing/90", help="a scenario id (see: acc-gym scenarios)")
+    p_demo.add_argument("--controller", default="acc", help="a built-in controller or module:attribute")
+    p_demo.add_argument("--seed", type=int, default=0)
+    p_demo.add_argument("--plot", default="acc_gym_demo.png", help="where to save the episode plot ('' for none)")
     p_demo.add_argument("--json", action="store_true", help="print one JSON object")
+    p_eval = sub.add_parser("evaluate", help="score a controller over episodes of an environment")
+    p_eval.add_argument("controller", help="a built-in name (acc, constant) or module:attribute")
+    p_eval.add_argument("--env", default="acc_gym/CarFollowing-v0", help="an environment id")
+    p_eval.add_argument("--episodes", type=int, default=10)
+    p_eval.add_argument("--seed", type=int, default=0)
+    p_eval.add_argument("--drivers", default=None, help="surrounding drivers (typical, atypical, malicious, idm, ...)")
+    p_eval.add_argument("--json", action="store_true", help="print one JSON object")
+    p_dd = sub.add_parser("driver-demo", help="simulate an MPC human-like driver and print what it did")
+    p_dd.add_argument("--driver", default="#57", help="paper 001 Table 4 preset: #23, #57, #61 or #13")
+    p_dd.add_argument("--speed", type=float, default=25.0, help="the lead's cruise speed [m/s]")
+    p_dd.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args(argv)
     if args.command in ("scenarios", "score"):
         try:
@@ -141,16 +189,64 @@ def main(argv=None) -> int:
         except (ValueError, OSError) as exc:
             parser.error(str(exc))
         return 0
-    if args.command == "demo":
+    if args.command == "driver-demo":
         try:
-            summary = demo(args.driver, args.speed)
+            summary = driver_demo(args.driver, args.speed)
         except ValueError as exc:
             parser.error(str(exc))
         if args.json:
             print(json.dumps(summary))
         else:
-            _print_demo(summary)
+            _print_driver_demo(summary)
+    elif args.command == "demo":
+        try:
+            out = demo(args.scenario, args.controller, args.seed, args.plot or None)
+        except (ValueError, TypeError) as exc:
+            parser.error(str(exc))
+        if args.json:
+            print(json.dumps(out))
+        else:
+            from acc_gym.evaluation.scoring import EpisodeReport  # noqa: F401
+
+            print(f"{out['scenario']} with controller {out['controller']!r}: score {out['score']:.1f} / 100 "
+                  f"({'qualified' if out['qualified'] else 'NOT qualified'}), simulated in {out['wall_time_s']:.2f} s")
+            _print_report(out["report"])
+            if out["plot"]:
+                print(f"plot: {out['plot']}")
+    elif args.command == "evaluate":
+        from acc_gym.evaluation.runner import evaluate
+
+        kwargs = {} if args.drivers is None else {"drivers": args.drivers}
+        try:
+            summary = evaluate(args.controller, args.env, args.episodes, args.seed, **kwargs)
+        except (ValueError, TypeError) as exc:
+            parser.error(str(exc))
+        if args.json:
+            print(json.dumps(summary))
+        else:
+            _print_summary(args.controller, args.env, summary)
     return 0
+
+
+def _print_report(r: dict) -> None:
+    for name, item in r["items"].items():
+        state = "qualified" if item["qualified"] else "unqualified"
+        print(f"  {name:<14} {item['requirement']:<26} {state}{'' if item['applicable'] else ' (not applicable)'}")
+    u = "n/a" if r["u"] is None else f"{r['u']:.3f}"
+    print(f"  efficiency     R1 = {r['r1']:.2f} (u = {u});  comfort R2 = {r['r2']:.2f} "
+          f"(j_x = {r['j_x']:.3f}, j_y = {r['j_y']:.3f})")
+    m = r["metrics"]
+    safe = "n/a" if m["share_safe_spacing"] is None else f"{m['share_safe_spacing']:.1%}"
+    print(f"  collision {m['collision']}, comfortable {m['share_comfortable']:.1%}, safe spacing {safe}, "
+          f"min TTC {m['min_ttc']} s, max jerk {m['max_jerk']:.2f} m/s^3, min gap {m['min_gap']}")
+
+
+def _print_summary(controller: str, env_id: str, s: dict) -> None:
+    print(f"{controller} on {env_id}, {s['episodes']} episodes:")
+    print(f"  mean score {s['mean_score']:.1f}, qualified {s['share_qualified']:.0%}, collisions {s['collisions']}")
+    safe = "n/a" if s["share_safe_spacing"] is None else f"{s['share_safe_spacing']:.1%}"
+    print(f"  comfortable {s['share_comfortable']:.1%}, safe spacing {safe}, min TTC {s['min_ttc']} s, "
+          f"max jerk {s['max_jerk']:.2f} m/s^3, mean speed overshoot {s['mean_speed_overshoot']}")
 
 
 if __name__ == "__main__":  # pragma: no cover

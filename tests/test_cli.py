@@ -4,11 +4,13 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from acc_gym.cli import main
 
 
-def test_demo_json_reports_what_the_driver_did(capsys):
-    assert main(["demo", "--json"]) == 0
+def test_driver_demo_json_reports_what_the_driver_did(capsys):
+    assert main(["driver-demo", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     modes = [m["mode"] for m in out["modes"]]
     assert modes[0] == "ACCELERATE" and "BRAKE" in modes
@@ -19,14 +21,14 @@ def test_demo_json_reports_what_the_driver_did(capsys):
     assert sum(out["solve_paths"].values()) == out["solver"]["steps"]
 
 
-def test_demo_text_and_bad_arguments():
-    r = subprocess.run([sys.executable, "-m", "acc_gym.cli", "demo", "--driver", "#13"], capture_output=True,
+def test_driver_demo_text_and_bad_arguments():
+    r = subprocess.run([sys.executable, "-m", "acc_gym.cli", "driver-demo", "--driver", "#13"], capture_output=True,
                        text=True)
     assert r.returncode == 0 and "modes:" in r.stdout and "#13" in r.stdout
-    bad = subprocess.run([sys.executable, "-m", "acc_gym.cli", "demo", "--driver", "#99"], capture_output=True,
-                         text=True)
+    bad = subprocess.run([sys.executable, "-m", "acc_gym.cli", "driver-demo", "--driver", "#99"],
+                         capture_output=True, text=True)
     assert bad.returncode == 2 and "unknown MPC driver preset" in bad.stderr
-    bad = subprocess.run([sys.executable, "-m", "acc_gym.cli", "demo", "--speed", "nan"], capture_output=True,
+    bad = subprocess.run([sys.executable, "-m", "acc_gym.cli", "driver-demo", "--speed", "nan"], capture_output=True,
                          text=True)
     assert bad.returncode == 2 and "--speed" in bad.stderr
 
@@ -61,3 +63,36 @@ def test_score_command_scores_a_recorded_csv(tmp_path, capsys):
     r = subprocess.run([sys.executable, "-m", "acc_gym.cli", "score", str(tmp_path / "missing.csv")],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "missing.csv" in r.stderr
+
+
+def test_demo_runs_a_scored_episode_and_saves_its_plot(tmp_path, capsys):
+    from acc_gym.evaluation import EgoTrace, score_episode  # noqa: F401
+
+    plot = tmp_path / "demo.png"
+    assert main(["demo", "--scenario", "carfollowing/60", "--seed", "3", "--plot", str(plot), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["scenario"] == "carfollowing/60" and out["qualified"]  # the linear ACC qualifies there
+    assert 60.0 < out["score"] <= 100.0 and out["score"] == out["report"]["score"]
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["demo", "--scenario", "ncap/ccrs/30", "--controller", "constant", "--plot", ""]) == 0
+    text = capsys.readouterr().out
+    assert "NOT qualified" in text and "collision True" in text
+
+
+def test_evaluate_prints_the_summary_and_rejects_bad_controllers(capsys, tmp_path, monkeypatch):
+    assert main(["evaluate", "acc", "--env", "acc_gym/NCAP-v0", "--episodes", "4", "--seed", "1", "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["episodes"] == 4 and s["collisions"] == 0 and len(s["scores"]) == 4
+    assert s["mean_score"] == sum(s["scores"]) / 4
+    # a module:attribute controller, scored through the same path
+    (tmp_path / "my_ctrl.py").write_text(
+        "from agents.controllers import ConstantSpeed\nblind = ConstantSpeed()\nclass Bad:\n    pass\n"
+        "class Wide:\n    def predict(self, obs, deterministic=True):\n        return [0.0, 0.0], None\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert main(["evaluate", "my_ctrl:blind", "--env", "acc_gym/NCAP-v0", "--episodes", "2", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["collisions"] >= 1
+    for ref, message in [("nosuchmodule:x", "cannot import module"), ("my_ctrl:missing", "no attribute"),
+                         ("my_ctrl:Bad", "no predict"), ("my_ctrl:Wide", "shape (2,)"), ("pid", "unknown controller")]:
+        with pytest.raises(SystemExit):
+            main(["evaluate", ref, "--episodes", "1"])
+        assert message in capsys.readouterr().err

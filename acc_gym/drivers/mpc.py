@@ -176,19 +176,27 @@ class MPCDriverParams:
                                       if getattr(self, f.name) is not None))
         return int(np.prod(shape)) if shape else 1
 
+    @classmethod
+    def _validated(cls, values: dict) -> "MPCDriverParams":
+        """Build from values taken from already validated parameters (no re-check: resets are hot)."""
+        obj = object.__new__(cls)
+        for name, value in values.items():
+            object.__setattr__(obj, name, value)
+        return obj
+
     def broadcast(self, n: int) -> "MPCDriverParams":
         """The same parameters as arrays of shape ``(n,)``."""
         out = {}
         for f in fields(self):
             value = getattr(self, f.name)
             out[f.name] = None if value is None else np.broadcast_to(np.asarray(value, float), (n,)).copy()
-        return MPCDriverParams(**out)
+        return MPCDriverParams._validated(out)
 
     def take(self, index) -> "MPCDriverParams":
         n = self.size
         b = self.broadcast(n)
-        return MPCDriverParams(**{f.name: (None if getattr(b, f.name) is None else getattr(b, f.name)[index])
-                                  for f in fields(b)})
+        return MPCDriverParams._validated({f.name: (None if getattr(b, f.name) is None else getattr(b, f.name)[index])
+                                           for f in fields(b)})
 
     def replace(self, **changes) -> "MPCDriverParams":
         return replace(self, **changes)
@@ -357,6 +365,54 @@ class MPCDriver:
         self._last_used = {key: -2 for key in self._backends}
         self._step = 0
 
+    def set_params(self, index, params: MPCDriverParams) -> None:
+        """Give drivers ``index`` (an int or a sequence) new ``params`` and restart them.
+
+        Only those drivers' rows of the kernel arrays are rebuilt (their condensed QPs come
+        from :func:`~acc_gym.drivers.qp.condensed_qp`'s cache when a configuration repeats)
+        and their solver workspaces dropped, so a batch of drivers can host a new human in
+        one slot while the others drive on -- what a vector environment's autoreset needs.
+        """
+        idx = np.atleast_1d(np.asarray(index, dtype=np.int64))
+        if idx.size and (idx.min() < 0 or idx.max() >= self.n):
+            raise ValueError(f"driver index out of range [0, {self.n}): {idx}")
+        new = params.broadcast(idx.size)
+        cur = self.params
+        if (cur.v_max is None) != (new.v_max is None) and cur.v_max is None:
+            object.__setattr__(cur, "v_max", np.array(cur.speed_limit, dtype=float))
+        for f in fields(MPCDriverParams):
+            target = getattr(cur, f.name)
+            if target is None:
+                continue
+            value = getattr(new, f.name)
+            target[idx] = new.speed_limit if value is None else value
+        p, s = cur, self.settings
+        alpha, beta = terminal_chords(p.a_min[idx], p.jerk_max[idx], p.speed_limit[idx])
+        self._alpha[idx], self._beta[idx] = alpha, beta
+        cols = np.stack([np.asarray(p.speed_limit if c == "v_max" else getattr(p, c), float)[idx]
+                         for c in _PARAM_COLUMNS], axis=1)
+        self._P[idx, :cols.shape[1]] = cols
+        self._P[idx, -2 * alpha.shape[1]:] = np.concatenate([alpha, beta], axis=1)
+        N = self.horizon.n_steps
+        for i in idx.tolist():
+            qf = condensed_qp(float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]), self.horizon,
+                              s.slack_linear, s.slack_quadratic, float(p.r_jerk[i]))
+            qc = condensed_qp(0.0, float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]), self.horizon,
+                              s.slack_linear, s.slack_quadratic, float(p.r_jerk[i]))
+            self._qp_follow[i], self._qp_cruise[i] = qf, qc
+            self._gain_f[i] = qf.gain
+            self._gain_c[i] = qc.gain[:, 1:]
+            self._H[i] = np.stack([qf.hinv_sums, qc.hinv_sums])
+            if s.use_lead_accel:
+                self._GL[i] = np.concatenate([np.zeros((N, 1)), np.cumsum(qf.gain_lead, axis=1)], axis=1)
+            for key in [k for k in self._backends if k[0] == i]:
+                del self._backends[key]
+                self._last_used.pop(key, None)
+        self._I[idx] = 0
+        self._PA[idx] = 0.0
+        self._W[idx] = 0.0
+        self._W[idx, K.W_PATH] = -1
+
     def __getstate__(self):
         state = self.__dict__.copy()
         for view in ("_lower", "_upper", "_plan", "_aseq", "mode", "_act_count", "_hard", "_stats", "_act_codes",
@@ -380,6 +436,10 @@ class MPCDriver:
     def stats(self) -> dict[str, np.ndarray]:
         """Running counts per driver: steps, each solve path, slack steps, emergency steps."""
         return {name: self._stats[:, j].copy() for j, name in enumerate(_STAT_NAMES)}
+
+    def stats_column(self, name: str) -> np.ndarray:
+        """One running count per driver (a view, no copy): ``"steps"``, ``"fallback"``, ..."""
+        return self._stats[:, _STAT_NAMES.index(name)]
 
     @property
     def info(self) -> dict[str, np.ndarray]:

@@ -67,6 +67,7 @@ from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 
+from acc_gym._validation import from_mapping
 from acc_gym.evaluation.indicators import comfort_j, efficiency_u, gap_safe, in_band, safety_q
 from acc_gym.evaluation.metrics import extra_metrics
 from acc_gym.evaluation.trace import EgoTrace
@@ -130,12 +131,7 @@ class ScoringConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "ScoringConfig":
-        if not isinstance(d, dict):
-            raise ValueError(f"a scoring config must be a mapping, got {type(d).__name__}")
-        unknown = set(d) - {f.name for f in fields(cls)}
-        if unknown:
-            raise ValueError(f"unknown scoring setting(s) {sorted(unknown)}; known: {[f.name for f in fields(cls)]}")
-        return cls(**d)
+        return from_mapping(cls, d, "scoring")
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ batch holds. ``simulate(scenario, ego)`` runs one scenario with an ego model to 
 
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -63,20 +63,21 @@ def _slot_driver(specs, dt: float, mpc_settings: MPCSettings | None):
     return DriverGroup(parts, B)
 
 
-def make_world(scenarios, *, ego=None, mpc_settings: MPCSettings | None = None,
-               sensor_range: float | None = None) -> SingleLaneWorld:
-    """One world stepping ``scenarios`` together (``ego``: optional model for slot 0, ``n == B``)."""
-    scenarios = [scenarios] if isinstance(scenarios, Scenario) else list(scenarios)
-    if not scenarios:
-        raise ValueError("make_world needs at least one scenario")
-    dts = {s.dt for s in scenarios}
-    if len(dts) != 1:
-        raise ValueError(f"scenarios in one world must share dt, got {sorted(dts)}")
-    roads = {s.road for s in scenarios}
-    if len(roads) != 1:
-        raise ValueError("scenarios in one world must share the road geometry")
-    dt = dts.pop()
-    road = roads.pop()
+@dataclass
+class SceneArrays:
+    """Initial arrays ``(B, 3)`` of a batch of scenarios, slot 0 the ego (absent slots parked)."""
+
+    x0: np.ndarray
+    v0: np.ndarray
+    present: np.ndarray
+    lateral: LateralPlan
+    length: np.ndarray
+    width: np.ndarray
+    drivers: list  # per slot: per scene DriverSpec or None
+
+
+def scene_arrays(scenarios, road) -> SceneArrays:
+    """Lay ``scenarios`` out as arrays for :class:`SingleLaneWorld` (lateral moves on ``road``)."""
     B, S = len(scenarios), len(ROLES)
     x0 = np.full((B, S), ABSENT_X)
     v0 = np.zeros((B, S))
@@ -99,10 +100,28 @@ def make_world(scenarios, *, ego=None, mpc_settings: MPCSettings | None = None,
                 t_start[b, s], dur[b, s] = v.lane_change.t_start, v.lane_change.duration
             length[b, s], width[b, s] = v.length, v.width
             specs[s][b] = v.driver
-    drivers = [ego] + [_slot_driver(specs[s], dt, mpc_settings) for s in range(1, S)]
+    return SceneArrays(x0, v0, present, LateralPlan(y0, y1, t_start, dur), length, width, specs)
+
+
+def make_world(scenarios, *, ego=None, mpc_settings: MPCSettings | None = None,
+               sensor_range: float | None = None) -> SingleLaneWorld:
+    """One world stepping ``scenarios`` together (``ego``: optional model for slot 0, ``n == B``)."""
+    scenarios = [scenarios] if isinstance(scenarios, Scenario) else list(scenarios)
+    if not scenarios:
+        raise ValueError("make_world needs at least one scenario")
+    dts = {s.dt for s in scenarios}
+    if len(dts) != 1:
+        raise ValueError(f"scenarios in one world must share dt, got {sorted(dts)}")
+    roads = {s.road for s in scenarios}
+    if len(roads) != 1:
+        raise ValueError("scenarios in one world must share the road geometry")
+    dt = dts.pop()
+    road = roads.pop()
+    arr = scene_arrays(scenarios, road)
+    drivers = [ego] + [_slot_driver(arr.drivers[s], dt, mpc_settings) for s in range(1, len(ROLES))]
     kwargs = {} if sensor_range is None else {"sensor_range": sensor_range}
-    return SingleLaneWorld(x0, v0, drivers, present=present, lateral=LateralPlan(y0, y1, t_start, dur),
-                           vehicle=VehicleParams(length=length), width=width, road=road, dt=dt, **kwargs)
+    return SingleLaneWorld(arr.x0, arr.v0, drivers, present=arr.present, lateral=arr.lateral,
+                           vehicle=VehicleParams(length=arr.length), width=arr.width, road=road, dt=dt, **kwargs)
 
 
 def simulate(scenario: Scenario, ego, **kwargs) -> WorldTrace:

@@ -178,7 +178,10 @@ class SingleLaneWorld:
         self.a0 = _as_bs(0.0 if a0 is None else a0, B, S, "a0")
         self.present = _as_bs(True if present is None else present, B, S, "present", dtype=bool)
         self.road = road if road is not None else Road()
-        self.lateral = lateral if lateral is not None else LateralPlan.still(np.zeros((B, S)))
+        plan = lateral if lateral is not None else LateralPlan.still(np.zeros((B, S)))
+        # the lateral plan as mutable (B, S) arrays, so that one scene can be replaced (reset_rows)
+        self.lateral = LateralPlan(*(np.broadcast_to(getattr(plan, f), (B, S)).copy()
+                                     for f in ("y0", "y1", "t_start", "duration")))
         self.width = _as_bs(width, B, S, "width")
         check_positive("width", self.width)
         self.vehicle = vehicle if vehicle is not None else VehicleParams()
@@ -188,24 +191,27 @@ class SingleLaneWorld:
         self.reset()
         self._check_apart()
 
-    def _check_apart(self) -> None:
-        """Vehicles sharing a lane corridor must not overlap lengthwise at the start."""
-        x, rear = self.x, self.x - self.lengths
-        both = self.present[:, None, :] & self.present[:, :, None] & ~np.eye(self.S, dtype=bool)
-        half = 0.5 * (self.road.lane_width + self.width[:, None, :])
-        corridor = np.abs(self.y[:, None, :] - self.y[:, :, None]) < half
+    def _check_apart(self, rows=None) -> None:
+        """Vehicles sharing a lane corridor must not overlap lengthwise at the start (of scenes ``rows``)."""
+        rows = np.arange(self.B) if rows is None else np.atleast_1d(rows)
+        x, y, present, width = self.x[rows], self.y[rows], self.present[rows], self.width[rows]
+        rear = x - self.lengths[rows]
+        both = present[:, None, :] & present[:, :, None] & ~np.eye(self.S, dtype=bool)
+        half = 0.5 * (self.road.lane_width + width[:, None, :])
+        corridor = np.abs(y[:, None, :] - y[:, :, None]) < half
         overlap = (rear[:, :, None] < x[:, None, :]) & (rear[:, None, :] < x[:, :, None])
         bad = np.argwhere(both & corridor & overlap)
         if bad.size:
-            b, i, j = bad[0]
+            j0, i, j = bad[0]
+            b = rows[j0]
             raise ValueError(f"vehicles must start apart: in scene {b}, slots {i} and {j} overlap "
-                             f"(front bumpers at {x[b, i]:.2f} m and {x[b, j]:.2f} m, lengths "
+                             f"(front bumpers at {x[j0, i]:.2f} m and {x[j0, j]:.2f} m, lengths "
                              f"{self.lengths[b, i]:.2f} and {self.lengths[b, j]:.2f} m)")
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
         """Back to the initial state; models are reset too."""
-        self.k = 0
+        self.k = np.zeros(self.B, dtype=np.int64)  # each scene's step count (its own clock)
         self.x = self.x0.copy()
         self.v = np.where(self.present, self.v0, 0.0)
         self.a = np.where(self.present, self.a0, 0.0)
@@ -218,12 +224,43 @@ class SingleLaneWorld:
         self.neighbours = self._neighbours()
 
     @property
-    def t(self) -> float:
+    def t(self) -> np.ndarray:
+        """Each scene's time [s], ``(B,)``."""
         return self.k * self.dt
 
     def _update_lateral(self) -> None:
-        self.y = np.broadcast_to(self.lateral.position(self.t), (self.B, self.S)).copy()
-        self.a_y = np.broadcast_to(self.lateral.acceleration(self.t), (self.B, self.S)).copy()
+        t = self.t[:, None]
+        self.y = self.lateral.position(t)
+        self.a_y = self.lateral.acceleration(t)
+
+    def reset_rows(self, rows, x0, v0, *, present=None, lateral: LateralPlan | None = None, lengths=None,
+                   width=None, a0=None) -> None:
+        """Start scenes ``rows`` afresh with new initial states (arrays ``(len(rows), S)``); the
+        other scenes are untouched. The caller restarts those scenes' driver models."""
+        rows = np.atleast_1d(np.asarray(rows, dtype=np.int64))
+        m = rows.size
+        x0 = _as_bs(x0, m, self.S, "x0")
+        v0 = _as_bs(v0, m, self.S, "v0")
+        check_nonnegative("v0", v0)
+        self.x0[rows], self.v0[rows] = x0, v0
+        self.a0[rows] = _as_bs(0.0 if a0 is None else a0, m, self.S, "a0")
+        self.present[rows] = _as_bs(True if present is None else present, m, self.S, "present", dtype=bool)
+        if lengths is not None:
+            self.lengths[rows] = _as_bs(lengths, m, self.S, "lengths")
+        if width is not None:
+            self.width[rows] = _as_bs(width, m, self.S, "width")
+        plan = lateral if lateral is not None else LateralPlan.still(np.zeros((m, self.S)))
+        for f in ("y0", "y1", "t_start", "duration"):
+            getattr(self.lateral, f)[rows] = np.broadcast_to(getattr(plan, f), (m, self.S))
+        self.k[rows] = 0
+        self.x[rows] = self.x0[rows]
+        self.v[rows] = np.where(self.present[rows], self.v0[rows], 0.0)
+        self.a[rows] = np.where(self.present[rows], self.a0[rows], 0.0)
+        self.a_des[rows] = np.nan
+        self.collided[rows] = False
+        self._update_lateral()
+        self.neighbours = self._neighbours()
+        self._check_apart(rows)
 
     def _neighbours(self) -> Neighbours:
         x, y = self.x, self.y

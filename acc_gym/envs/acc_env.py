@@ -1,0 +1,238 @@
+"""The ACC test environment (one scene); the vector version is :mod:`acc_gym.envs.vector`."""
+
+from __future__ import annotations
+
+import numpy as np
+import gymnasium as gym
+from gymnasium import spaces
+
+from acc_gym.envs.config import EnvConfig, ScenarioSampler
+from acc_gym.envs.core import EpisodeBatch
+from acc_gym.envs.reward import CriteriaReward
+from acc_gym.scenarios.registry import build
+from acc_gym.scenarios.spec import Scenario
+
+OBS_NAMES = ("v", "a", "gap", "v_rel", "lead_in_range", "set_speed", "time_gap")
+OBS_NAMES_V2V = ("a_lead", "gap2", "v_rel2", "lead2_in_range")
+V_MAX = 70.0  # [m/s] observation bound for speeds
+A_BOUND = 15.0  # [m/s^2] observation bound for accelerations
+TIME_GAP_MAX = 10.0  # [s]
+
+
+def observation_space(config: EnvConfig) -> spaces.Box:
+    r = config.sensor_range
+    low = [0.0, -A_BOUND, 0.0, -V_MAX, 0.0, 0.0, 0.0]
+    high = [V_MAX, A_BOUND, r, V_MAX, 1.0, V_MAX, TIME_GAP_MAX]
+    if config.v2v:
+        low += [-A_BOUND, 0.0, -V_MAX, 0.0]
+        high += [A_BOUND, r, V_MAX, 1.0]
+    return spaces.Box(np.array(low, dtype=np.float32), np.array(high, dtype=np.float32), dtype=np.float32)
+
+
+def action_to_accel(action: np.ndarray, config: EnvConfig) -> np.ndarray:
+    """Actions in [-1, 1] (clipped) to desired accelerations [m/s^2]: ``+1 -> accel_max``, ``-1 -> -decel_max``."""
+    a = np.clip(action, -1.0, 1.0)
+    return np.where(a >= 0, a * config.accel_max, a * config.decel_max)
+
+
+def check_actions(actions, shape: tuple) -> np.ndarray:
+    """``actions`` as a float array of ``shape``, or a ``ValueError`` naming what is wrong."""
+    if actions is None:
+        raise ValueError(f"action must be numeric with shape {shape}, got None")
+    try:
+        a = np.asarray(actions, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"action must be numeric with shape {shape}, got {actions!r}") from None
+    if a.dtype == object:
+        raise ValueError(f"action must be numeric with shape {shape}, got {actions!r}")
+    if a.shape != shape and a.size == int(np.prod(shape)) and a.ndim <= len(shape):
+        a = a.reshape(shape)
+    if a.shape != shape:
+        raise ValueError(f"action must have shape {shape}, got {a.shape}")
+    if np.any(np.isnan(a)):
+        raise ValueError(f"action is NaN: {actions!r}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"action must be finite, got {actions!r}")
+    return a
+
+
+def make_config(config, overrides: dict, default_scenarios=None) -> EnvConfig:
+    """The config: ``config`` (an EnvConfig, a dict or None) with ``overrides``; an id's
+    ``default_scenarios`` apply only when neither names the scenarios."""
+    if config is None:
+        config = EnvConfig() if default_scenarios is None or "scenarios" in overrides else EnvConfig(
+            scenarios=default_scenarios)
+    elif isinstance(config, dict):
+        config = EnvConfig.from_dict(config)
+    elif not isinstance(config, EnvConfig):
+        raise TypeError(f"config must be an EnvConfig or a dict, got {type(config).__name__}")
+    return config.replace(**overrides) if overrides else config
+
+
+class ACCEnv(gym.Env):
+    """Adaptive cruise control among human-like drivers, scored by paper 003's criteria.
+
+    ## Description
+
+    The agent is the longitudinal controller of the ego vehicle (the SV). Each episode is
+    one scenario from :mod:`acc_gym.scenarios` -- paper 003's car-following test, paper
+    004's single-lane configurations (cut-ins, cut-outs, lane changes, approaches),
+    NCAP-style rear tests, stop-and-go -- with up to two vehicles ahead driven by
+    human-like MPC drivers (paper 001), scripted profiles or baseline models. The ego's
+    physics is :mod:`acc_gym.vehicle` (traction, power and tyre limits, no reversing);
+    one step is 0.2 s. At the end the episode gets the 100-point score of paper 003.
+
+    ## Action Space
+
+    ``Box(-1, 1, (1,), float32)``: the desired acceleration, ``action * accel_max`` for
+    ``action >= 0`` and ``action * decel_max`` below (defaults 3 and 8 m/s^2; 0 means
+    no acceleration). Values outside [-1, 1] are clipped; NaN or a wrong shape raise
+    ``ValueError``. The vehicle model then limits it; ``info["a_applied"]`` is what was
+    applied [m/s^2].
+
+    ## Observation Space
+
+    ``Box(float32)`` of what an ACC measures (radar range ``sensor_range``, 200 m):
+
+    | index | observation | unit | range |
+    |---|---|---|---|
+    | 0 | ego speed | m/s | [0, 70] |
+    | 1 | ego acceleration over the last step | m/s^2 | [-15, 15] |
+    | 2 | gap (bumper to bumper) to the vehicle ahead; ``sensor_range`` if none in range | m | [0, 200] |
+    | 3 | relative speed, vehicle ahead minus ego; 0 if none | m/s | [-70, 70] |
+    | 4 | 1 if a vehicle ahead is in range, else 0 | - | {0, 1} |
+    | 5 | set speed | m/s | [0, 70] |
+    | 6 | nominal time gap | s | [0, 10] |
+
+    With ``v2v=True`` (CACC), also:
+
+    | index | observation | unit | range |
+    |---|---|---|---|
+    | 7 | acceleration of the vehicle ahead (V2V); 0 if none | m/s^2 | [-15, 15] |
+    | 8 | gap to the second vehicle ahead; ``sensor_range`` if none | m | [0, 200] |
+    | 9 | its speed minus the ego's; 0 if none | m/s | [-70, 70] |
+    | 10 | 1 if a second vehicle ahead is in range | - | {0, 1} |
+
+    ## Rewards
+
+    Per step, from the score's own criteria (:mod:`acc_gym.envs.reward`): +1 inside the
+    car-following band on a car-following sample, +0.5 (1 - u_t) efficiency there, +1 for
+    holding the set speed when there is nothing to follow, -0.1 (a / 3)^2 comfort, -0.02
+    (jerk / 10)^2, -2 per proper-response safety violation, -100 for a collision. Each
+    term is in ``info["rewards"]``. Parking, hanging back or oscillating earn less than
+    following well. Replace it with ``reward_fn=``.
+
+    ## Starting State
+
+    The scenario's initial speeds and gaps (drawn from its parameter laws with the
+    environment's generator; ``reset(options={"scenario": id_or_Scenario})`` forces one).
+
+    ## Episode End
+
+    ### Termination
+    The ego collides with the vehicle ahead (gap <= 0), or -- with
+    ``terminate_on_violation=True`` -- violates the proper-response safety rule.
+
+    ### Truncation
+    The scenario's end (its duration, e.g. the lead's stop in paper 003's test).
+
+    The last step's ``info`` has ``score`` (0-100), ``qualified`` (bool), ``report`` (the
+    full episode report: items, R1, R2, u, j, extra metrics) and ``episode_return``. Every
+    step's ``info`` has ``q`` and ``g`` (D1 - Gapsafe [m], inf with nothing ahead),
+    ``gap_safe``, ``a_applied``, ``violation``, ``modes`` (the POV's and POV2's MPC modes,
+    -1 without one), ``fallbacks`` (solver fallbacks of the surrounding drivers this
+    episode), ``rewards`` and ``t``.
+
+    ## Arguments
+
+    ``gymnasium.make("acc_gym/CarFollowing-v0", config=None, scenario_generator=None,
+    reward_fn=None, render_mode=None, mpc_settings=None, **settings)``: ``config`` an
+    :class:`~acc_gym.envs.config.EnvConfig` (or dict); ``settings`` override its fields
+    (``scenarios``, ``weights``, ``drivers``, ``accel_max``, ``decel_max``,
+    ``sensor_range``, ``v2v``, ``terminate_on_violation``, ``scoring``); a misspelt setting
+    is an error. ``scenario_generator(rng) -> Scenario`` replaces the default sampler.
+    ``render_mode``: ``"rgb_array"`` (uint8 top view) or ``"human"`` (a matplotlib window).
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 5}
+
+    def __init__(self, config: EnvConfig | dict | None = None, *, scenario_generator=None, reward_fn=None,
+                 render_mode: str | None = None, mpc_settings=None, default_scenarios=None, **settings):
+        self.config = make_config(config, settings, default_scenarios)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
+        self.observation_space = observation_space(self.config)
+        self.core = EpisodeBatch(1, self.config, scenario_generator or ScenarioSampler(self.config),
+                                 reward_fn or CriteriaReward(), mpc_settings)
+        self._needs_reset = True
+        self._viewer = None
+
+    @property
+    def scenario(self) -> Scenario | None:
+        return self.core.scenarios[0]
+
+    def _obs(self) -> np.ndarray:
+        o = self.core.observe()[0].astype(np.float32)
+        return np.clip(o, self.observation_space.low, self.observation_space.high)
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        options = dict(options or {})
+        scenario = options.pop("scenario", None)
+        if options:
+            raise ValueError(f"unknown reset option(s) {sorted(options)}; known: ['scenario']")
+        if isinstance(scenario, str):
+            scenario = build(scenario, seed=int(self.np_random.integers(0, 2 ** 31 - 1)), drivers=self.config.drivers)
+        elif scenario is not None and not isinstance(scenario, Scenario):
+            raise TypeError(f"options['scenario'] must be a scenario id or a Scenario, got {type(scenario).__name__}")
+        self.core.reset_rows([0], [self.np_random], [scenario])
+        self._needs_reset = False
+        sc = self.scenario
+        if self.render_mode == "human":
+            self.render()
+        return self._obs(), {"scenario": sc.id, "scenario_seed": sc.seed, "t": 0.0}
+
+    def step(self, action):
+        if self._needs_reset:
+            raise RuntimeError("the episode has ended (or never started): call reset() before step()")
+        a = check_actions(action, (1,))
+        reward, term, trunc, info = self.core.step(action_to_accel(a, self.config))
+        out = {key: (value[0] if key != "rewards" else {k: float(v[0]) for k, v in value.items()})
+               for key, value in info.items() if key != "final"}
+        for key in ("t", "q", "g", "gap_safe", "a_applied"):
+            out[key] = float(out[key])
+        out["violation"] = bool(out["violation"])
+        out["fallbacks"] = int(out["fallbacks"])
+        out["modes"] = np.asarray(out["modes"]).copy()
+        out["scenario"] = self.scenario.id
+        if 0 in info["final"]:
+            out.update(info["final"][0])
+            self._needs_reset = True
+        if self.render_mode == "human":
+            self.render()
+        return self._obs(), float(reward[0]), bool(term[0]), bool(trunc[0]), out
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
+            return None
+        from acc_gym.rendering import HumanViewer
+
+        frame = self.core.frame(0)
+        if self.render_mode == "rgb_array":
+            return frame
+        if self._viewer is None:
+            self._viewer = HumanViewer()
+        self._viewer.show(frame)
+        return None
+
+    def close(self):
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None

@@ -1,0 +1,113 @@
+"""The environment's configuration and its default scenario generator."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields
+
+import numpy as np
+
+from acc_gym._validation import from_mapping
+from acc_gym.evaluation.scoring import ScoringConfig
+from acc_gym.scenarios.registry import DRIVER_CHOICES, build, list_scenarios, scenario_type
+from acc_gym.scenarios.spec import Scenario
+
+CARFOLLOWING = tuple(list_scenarios("carfollowing"))
+SINGLELANE = tuple(i for i in list_scenarios("singlelane") if scenario_type(i).in_paper)
+NCAP = tuple(list_scenarios("ncap"))
+STOPANDGO = ("stopandgo",)
+FAMILIES = {"carfollowing": CARFOLLOWING, "singlelane": SINGLELANE, "ncap": NCAP, "stopandgo": STOPANDGO}
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Everything that defines an environment; validated on construction.
+
+    ``scenarios`` are the ids (or family names: ``"carfollowing"``, ``"singlelane"`` -- its
+    22 paper configurations --, ``"ncap"``, ``"stopandgo"``) an episode is drawn from, with
+    probabilities proportional to
+    ``weights`` (default: the single-lane configurations' occurrence rates where they have
+    them, else uniform). ``drivers`` picks the surrounding drivers (see
+    :func:`acc_gym.scenarios.build`). The action ``[-1, 1]`` maps to a desired acceleration
+    ``action * accel_max`` for ``action >= 0`` and ``action * decel_max`` below (0 is
+    "no acceleration"), which the vehicle model then limits.
+    """
+
+    scenarios: tuple = CARFOLLOWING
+    weights: tuple | None = None
+    drivers: str = "typical"
+    accel_max: float = 3.0  # [m/s^2] desired acceleration at action +1
+    decel_max: float = 8.0  # [m/s^2] desired deceleration at action -1 (about the tyre limit)
+    sensor_range: float = 200.0  # [m] radar range: beyond it the observation shows no vehicle
+    v2v: bool = False  # observe the vehicle ahead's acceleration and the second vehicle ahead (CACC)
+    terminate_on_violation: bool = False  # also end the episode at a safety violation (proper response)
+    scoring: ScoringConfig = field(default_factory=ScoringConfig)
+
+    def __post_init__(self) -> None:
+        names = (self.scenarios,) if isinstance(self.scenarios, str) else tuple(self.scenarios)
+        if not names:
+            raise ValueError("EnvConfig.scenarios must name at least one scenario id or family")
+        ids: list[str] = []
+        for name in names:
+            if name in FAMILIES:
+                ids.extend(FAMILIES[name])
+            else:
+                scenario_type(name)  # raises naming an unknown id
+                ids.append(name)
+        ids = tuple(ids)
+        object.__setattr__(self, "scenarios", ids)
+        if self.weights is not None:
+            w = tuple(float(x) for x in self.weights)
+            if len(w) != len(ids) or not all(math.isfinite(x) and x >= 0 for x in w) or sum(w) <= 0:
+                raise ValueError(f"EnvConfig.weights must be {len(ids)} non-negative numbers with a positive sum, "
+                                 f"got {self.weights!r}")
+            object.__setattr__(self, "weights", w)
+        if self.drivers not in DRIVER_CHOICES:
+            raise ValueError(f"EnvConfig.drivers must be one of {list(DRIVER_CHOICES)}, got {self.drivers!r}")
+        for name in ("accel_max", "decel_max", "sensor_range"):
+            value = getattr(self, name)
+            number = isinstance(value, (int, float)) and not isinstance(value, bool)
+            if not number or not (math.isfinite(value) and value > 0):
+                raise ValueError(f"EnvConfig.{name} must be a number > 0, got {value!r}")
+        for name in ("v2v", "terminate_on_violation"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"EnvConfig.{name} must be True or False, got {getattr(self, name)!r}")
+        if isinstance(self.scoring, dict):
+            object.__setattr__(self, "scoring", ScoringConfig.from_dict(self.scoring))
+        if not isinstance(self.scoring, ScoringConfig):
+            raise ValueError(f"EnvConfig.scoring must be a ScoringConfig, got {type(self.scoring).__name__}")
+
+    @property
+    def probabilities(self) -> np.ndarray:
+        if self.weights is not None:
+            w = np.array(self.weights)
+        else:
+            rates = [scenario_type(i).occurrence_rate for i in self.scenarios]
+            w = np.array([r.value if r is not None and hasattr(r, "value") else 1.0 for r in rates])
+        return w / w.sum()
+
+    def replace(self, **changes) -> "EnvConfig":
+        return EnvConfig.from_dict({**self.to_dict(), **changes})
+
+    def to_dict(self) -> dict:
+        d = {f.name: getattr(self, f.name) for f in fields(self)}
+        d["scoring"] = asdict(self.scoring)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "EnvConfig":
+        return from_mapping(cls, d, "environment")
+
+
+class ScenarioSampler:
+    """The default scenario generator: an id drawn by the config's probabilities, a fresh seed,
+    and :func:`acc_gym.scenarios.build` -- all from the generator it is called with."""
+
+    def __init__(self, config: EnvConfig):
+        self.ids = config.scenarios
+        self.p = config.probabilities
+        self.drivers = config.drivers
+
+    def __call__(self, rng: np.random.Generator) -> Scenario:
+        sid = self.ids[int(rng.choice(len(self.ids), p=self.p))] if len(self.ids) > 1 else self.ids[0]
+        return build(sid, seed=int(rng.integers(0, 2 ** 31 - 1)), drivers=self.drivers)

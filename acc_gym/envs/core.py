@@ -1,0 +1,230 @@
+"""The episodes of ``n`` environments as arrays: one core for the single and the vector env.
+
+:class:`EpisodeBatch` owns one :class:`~acc_gym.simulation.single_lane.SingleLaneWorld`
+of ``n`` scenes, one :class:`~acc_gym.drivers.slots.SlotDrivers` per surrounding slot (so
+the MPC drivers of all scenes are solved together), each scene's random generator,
+scenario, step budget and episode record. ``reset_rows`` starts new episodes in some
+scenes; ``step`` advances all of them, computes the criteria and rewards as arrays, and
+scores every episode that ends. The single environment is this core with ``n = 1``, so a
+vector environment equals ``n`` single ones by construction.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from acc_gym.drivers.slots import SlotDrivers
+from acc_gym.envs.config import EnvConfig
+from acc_gym.envs.reward import StepIndicators
+from acc_gym.evaluation.scoring import DEFAULT_TAU1, score_episode
+from acc_gym.evaluation.trace import EgoTrace
+from acc_gym.scenarios.spec import Scenario
+from acc_gym.scenarios.world import ABSENT_X, scene_arrays
+from acc_gym.simulation.single_lane import SingleLaneWorld
+
+SLOTS = 3
+DT = 0.2  # [s] every built-in scenario's step
+LANE_WIDTH = 3.75  # [m]
+_RECORD = ("t", "v", "a", "gap", "v_lead", "a_lead", "lead_id", "a_y", "d2", "d3")
+
+
+class EpisodeBatch:
+    """``n`` scenes stepped together (see the module docstring)."""
+
+    def __init__(self, n: int, config: EnvConfig, generator, reward_fn, mpc_settings=None):
+        self.n = int(n)
+        self.config = config
+        self.generator = generator
+        self.reward_fn = reward_fn
+        self.slots = [SlotDrivers(self.n, DT, mpc_settings) for _ in range(SLOTS - 1)]
+        x0 = np.full((self.n, SLOTS), ABSENT_X)
+        self.world = SingleLaneWorld(x0, np.zeros((self.n, SLOTS)), [None, *self.slots],
+                                     present=np.zeros((self.n, SLOTS), dtype=bool), dt=DT,
+                                     sensor_range=config.sensor_range)
+        self.scenarios: list[Scenario | None] = [None] * self.n
+        self.steps = np.zeros(self.n, dtype=np.int64)
+        self.set_speed = np.ones(self.n)
+        self.time_gap = np.ones(self.n)
+        self.tau1 = np.ones(self.n)
+        self.n_lanes = np.ones(self.n)
+        self.lane_width = np.full(self.n, LANE_WIDTH)
+        self.neg_since = np.full(self.n, np.nan)  # when Q last turned negative [s]
+        self.last_change = np.zeros(self.n)  # when the vehicle ahead last changed [s]
+        self.lead_prev = np.full(self.n, -1)
+        self.done = np.ones(self.n, dtype=bool)
+        self.episode_return = np.zeros(self.n)
+        self._rec = {k: np.zeros((self.n, 1)) for k in _RECORD}
+
+    # ------------------------------------------------------------------ episodes
+    def reset_rows(self, rows, rngs, scenarios=None) -> None:
+        """Start new episodes in scenes ``rows``: each draws its scenario with its generator
+        (``rngs[j]``) unless ``scenarios[j]`` is given."""
+        rows = [int(r) for r in np.atleast_1d(rows)]
+        chosen = []
+        for j, row in enumerate(rows):
+            sc = scenarios[j] if scenarios is not None and scenarios[j] is not None else self.generator(rngs[j])
+            if not isinstance(sc, Scenario):
+                raise TypeError(f"the scenario generator must return a Scenario, got {type(sc).__name__}")
+            if sc.dt != DT:
+                raise ValueError(f"scenario {sc.id!r} has dt={sc.dt}; the environments step at {DT} s")
+            if sc.road.lane_width != LANE_WIDTH:
+                raise ValueError(f"scenario {sc.id!r} has {sc.road.lane_width} m lanes; "
+                                 f"the environments use {LANE_WIDTH}")
+            chosen.append(sc)
+        arr = scene_arrays(chosen, self.world.road)
+        self.world.reset_rows(rows, arr.x0, arr.v0, present=arr.present, lateral=arr.lateral, lengths=arr.length,
+                              width=arr.width)
+        for s, slot in enumerate(self.slots, start=1):
+            for j, row in enumerate(rows):
+                slot.assign(row, arr.drivers[s][j])
+        tau_cfg = self.config.scoring.tau1
+        for j, (row, sc) in enumerate(zip(rows, chosen)):
+            self.scenarios[row] = sc
+            self.steps[row] = sc.steps
+            self.set_speed[row] = sc.set_speed
+            self.time_gap[row] = sc.time_gap
+            self.tau1[row] = tau_cfg if tau_cfg is not None else (sc.time_gap or DEFAULT_TAU1)
+            self.n_lanes[row] = sc.road.n_lanes
+        rows_a = np.array(rows)
+        _, has, gap, v0, _ = self._lead_state()
+        _, q = self._q(self.world.v[:, 0], v0, gap, has)
+        self.neg_since[rows_a] = np.where(q[rows_a] < 0, 0.0, np.nan)
+        self.last_change[rows_a] = 0.0
+        self.lead_prev[rows_a] = self.world.neighbours.lead[rows_a, 0]
+        self.done[rows_a] = False
+        self.episode_return[rows_a] = 0.0
+        need = int(self.steps[rows_a].max()) + 1
+        if need > self._rec["t"].shape[1]:
+            self._rec = {k: np.concatenate([v, np.zeros((self.n, need - v.shape[1]))], axis=1)
+                         for k, v in self._rec.items()}
+        self._record(rows_a)
+
+    def _q(self, v1, v0, gap, has):
+        """Gapsafe and Q per scene (each with its own tau1)."""
+        cfg = self.config.scoring
+        gs = v1 * self.tau1 + v1 ** 2 / (2.0 * cfg.b1) - v0 ** 2 / (2.0 * cfg.b0)
+        return gs, np.where(has, gap - gs, np.inf)
+
+    def _lead_state(self):
+        w = self.world
+        lead = w.neighbours.lead[:, 0]
+        rows = np.arange(self.n)
+        safe = np.maximum(lead, 0)
+        has = lead >= 0
+        v_lead = np.where(has, w.v[rows, safe], 0.0)
+        return lead, has, w.neighbours.gap[:, 0], v_lead, np.where(has, w.a[rows, safe], 0.0)
+
+    def _record(self, rows) -> None:
+        """Write the current state of scenes ``rows`` into their episode records at their step."""
+        w = self.world
+        lead, has, gap, v_lead, a_lead = self._lead_state()
+        k = w.k[rows]
+        y = w.y[rows, 0]
+        half = 0.5 * w.width[rows, 0]
+        values = {"t": w.t[rows], "v": w.v[rows, 0], "a": w.a[rows, 0], "gap": gap[rows], "v_lead": v_lead[rows],
+                  "a_lead": a_lead[rows], "lead_id": lead[rows].astype(float), "a_y": w.a_y[rows, 0],
+                  "d2": y + 0.5 * self.lane_width[rows] - half,
+                  "d3": (self.n_lanes[rows] - 0.5) * self.lane_width[rows] - y - half}
+        for key, value in values.items():
+            self._rec[key][rows, k] = value
+
+    # ------------------------------------------------------------------ observation
+    def observe(self) -> np.ndarray:
+        """Observations ``(n, 7)`` or ``(n, 11)`` with V2V (see the environment docstring)."""
+        w = self.world
+        obs = w.observe(0)
+        rng = self.config.sensor_range
+        seen = np.isfinite(obs.gap)
+        cols = [w.v[:, 0], w.a[:, 0], np.where(seen, np.clip(obs.gap, 0.0, rng), rng),
+                np.where(seen, obs.v_lead - obs.v, 0.0), seen.astype(float), self.set_speed, self.time_gap]
+        if self.config.v2v:
+            seen2 = np.isfinite(obs.gap2)
+            cols += [np.where(seen, obs.a_lead, 0.0), np.where(seen2, np.clip(obs.gap2, 0.0, rng), rng),
+                     np.where(seen2, obs.v_lead2 - obs.v, 0.0), seen2.astype(float)]
+        return np.stack(cols, axis=1)
+
+    # ------------------------------------------------------------------ step
+    def step(self, a_des: np.ndarray, active: np.ndarray | None = None):
+        """Advance every scene by one step with desired ego accelerations ``a_des`` [m/s^2].
+
+        Returns ``(reward, terminated, truncated, info)`` as arrays over the scenes;
+        ``info`` holds per-step arrays and, under ``"final"``, a dict row -> final info for
+        the episodes that ended. Scenes not ``active`` are stepped but their results are
+        meaningless (a vector env's scenes that are about to be reset)."""
+        w = self.world
+        a_prev = w.a[:, 0].copy()
+        w.step(a_des)
+        t = w.t
+        cfg = self.config.scoring
+        lead, has, gap, v0, _ = self._lead_state()
+        v1, a1 = w.v[:, 0], w.a[:, 0]
+        jerk = (a1 - a_prev) / DT
+        changed = lead != self.lead_prev
+        self.last_change = np.where(changed, t, self.last_change)
+        self.lead_prev = lead
+        gs, q = self._q(v1, v0, gap, has)
+        in_band = has & (gs > 0) & (q > 0) & (q < cfg.band_width * gs)
+        too_fast = v0 > self.set_speed + cfg.steady_dv
+        followable = has & (v0 > cfg.moving_speed) & ~too_fast
+        settled = t - self.last_change >= cfg.transient
+        following = (followable & settled & (v1 > cfg.moving_speed) & (np.abs(v0 - v1) <= cfg.steady_dv)
+                     & (gs > 0))
+        # nothing to follow: none in view, or one faster than the set speed -- and none followable
+        # beyond the sensor either (hanging back out of range earns no speed reward)
+        free = (~(has & (gap <= cfg.sensor_range)) | (has & too_fast)) & ~followable
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = np.where(has & (gs > 0), np.clip(q / (cfg.band_width * np.where(gs > 0, gs, 1.0)), 0.0, 1.0), np.nan)
+        neg = has & (q < 0)
+        self.neg_since = np.where(neg, np.where(np.isnan(self.neg_since), t, self.neg_since), np.nan)
+        grace = cfg.response_time if cfg.response_time is not None else self.tau1
+        responding = (a1 <= -cfg.response_decel) | (v1 <= cfg.stop_speed)
+        collision = has & (gap <= 0.0)
+        violation = (neg & (t - self.neg_since > grace) & ~responding) | collision
+        ind = StepIndicators(v=v1, a=a1, jerk=jerk, set_speed=self.set_speed, has_lead=has, gap=gap, gap_safe=gs, q=q,
+                             in_band=in_band, following=following, free=free, u=u, violation=violation,
+                             collision=collision, a_comfort=cfg.a_x_comfort)
+        reward, terms = self.reward_fn(ind)
+        reward = np.asarray(reward, dtype=float)
+        if active is None:
+            active = ~self.done
+        rows = np.flatnonzero(active)
+        self._record(rows)
+        self.episode_return[rows] += reward[rows]
+        terminated = collision | (violation & self.config.terminate_on_violation)
+        truncated = (w.k >= self.steps) & ~terminated
+        fallbacks = sum(slot.fallbacks for slot in self.slots)
+        modes = np.stack([slot.info.get("mode", np.full(self.n, -1)) for slot in self.slots], axis=1)
+        info = {"t": t.copy(), "q": q, "g": q, "gap_safe": gs, "a_applied": a1.copy(), "violation": violation,
+                "modes": modes, "fallbacks": fallbacks, "rewards": terms}
+        ended = rows[(terminated | truncated)[rows]]
+        info["final"] = {int(r): self._final(int(r)) for r in ended}
+        self.done[ended] = True
+        return reward, terminated, truncated, info
+
+    def _final(self, row: int) -> dict:
+        k = int(self.world.k[row])
+        rec = {key: self._rec[key][row, :k + 1].copy() for key in _RECORD}
+        sc = self.scenarios[row]
+        trace = EgoTrace(**rec, set_speed=sc.set_speed, time_gap=sc.time_gap)
+        report = score_episode(trace, self.config.scoring)
+        return {"score": report.score, "qualified": report.qualified, "report": report.to_dict(),
+                "scenario": sc.id, "scenario_seed": sc.seed, "episode_return": float(self.episode_return[row])}
+
+    def frame(self, row: int, **kw) -> np.ndarray:
+        """A top-view RGB frame of scene ``row`` (:func:`acc_gym.rendering.render_frame`)."""
+        from acc_gym.rendering import render_frame
+
+        if self.scenarios[row] is None:
+            raise RuntimeError("call reset() before render()")
+        w = self.world
+        modes = np.array([-1] + [int(s.info["mode"][row]) if "mode" in s.info and w.k[row] > 0 else -1
+                                 for s in self.slots])
+        return render_frame(w.x[row], w.y[row], w.present[row], w.lengths[row], w.width[row],
+                            self.scenarios[row].road, modes=modes, v=w.v[row], **kw)
+
+    def trace(self, row: int) -> EgoTrace:
+        """The current episode of scene ``row`` so far, as an :class:`EgoTrace`."""
+        k = int(self.world.k[row])
+        sc = self.scenarios[row]
+        return EgoTrace(**{key: self._rec[key][row, :k + 1].copy() for key in _RECORD}, set_speed=sc.set_speed,
+                        time_gap=sc.time_gap)

@@ -1,0 +1,147 @@
+"""A native vector environment: ``num_envs`` ACC environments stepped as arrays.
+
+All scenes live in one :class:`~acc_gym.envs.core.EpisodeBatch`, so the human-like MPC
+drivers of every environment are solved together in one batched kernel call per step.
+It is each registered id's ``vector_entry_point``::
+
+    envs = gymnasium.make_vec("acc_gym/SingleLane-v0", num_envs=256, vectorization_mode="vector_entry_point")
+
+Semantics follow :class:`gymnasium.vector.SyncVectorEnv` with next-step autoreset: an
+environment whose episode ended is reset by the following ``step`` (its action ignored,
+reward 0, not terminated or truncated), drawing its next scenario from its own generator
+(seeded ``seed + i`` by ``reset(seed=seed)``). So it equals ``num_envs`` single
+environments step for step. Infos are arrays over the environments with ``_key`` masks;
+``score``, ``qualified``, ``report`` (an object array of dicts) and ``episode_return`` are
+set where an episode ended; ``scenario`` and ``scenario_seed`` where one started.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from acc_gym.envs.acc_env import action_to_accel, check_actions, make_config, observation_space
+from acc_gym.envs.config import EnvConfig, ScenarioSampler
+from acc_gym.envs.core import EpisodeBatch
+from acc_gym.envs.reward import CriteriaReward
+from acc_gym.scenarios.registry import build
+from acc_gym.scenarios.spec import Scenario
+
+_STEP_KEYS = ("t", "q", "g", "gap_safe", "a_applied", "violation", "fallbacks")
+
+
+class ACCVectorEnv(VectorEnv):
+    """``num_envs`` :class:`~acc_gym.envs.acc_env.ACCEnv` as one array environment (see the module docstring)."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 5, "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 1, config: EnvConfig | dict | None = None, *, scenario_generator=None,
+                 reward_fn=None, render_mode: str | None = None, mpc_settings=None, default_scenarios=None,
+                 **settings):
+        if int(num_envs) != num_envs or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        self.num_envs = int(num_envs)
+        self.config = make_config(config, settings, default_scenarios)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be 'rgb_array' or None for the vector env, got {render_mode!r}")
+        self.render_mode = render_mode
+        self.single_action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
+        self.single_observation_space = observation_space(self.config)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.core = EpisodeBatch(self.num_envs, self.config, scenario_generator or ScenarioSampler(self.config),
+                                 reward_fn or CriteriaReward(), mpc_settings)
+        self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
+        self._autoreset = np.zeros(self.num_envs, dtype=bool)
+        self._started = False
+
+    def _obs(self) -> np.ndarray:
+        o = self.core.observe().astype(np.float32)
+        return np.clip(o, self.single_observation_space.low, self.single_observation_space.high)
+
+    def _reset_rows(self, rows, scenarios=None) -> dict:
+        self.core.reset_rows(rows, [self._rngs[r] for r in rows], scenarios)
+        mask = np.zeros(self.num_envs, dtype=bool)
+        mask[rows] = True
+        ids = np.empty(self.num_envs, dtype=object)
+        seeds = np.zeros(self.num_envs, dtype=np.int64)
+        for r in rows:
+            ids[r] = self.core.scenarios[r].id
+            seeds[r] = self.core.scenarios[r].seed
+        return {"scenario": ids, "_scenario": mask.copy(), "scenario_seed": seeds, "_scenario_seed": mask.copy()}
+
+    def reset(self, *, seed=None, options: dict | None = None):
+        if seed is None:
+            seeds = [None] * self.num_envs
+        elif isinstance(seed, (int, np.integer)):
+            seeds = [int(seed) + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"reset(seed=...) needs {self.num_envs} seeds, got {len(seeds)}")
+        self._rngs = [seeding.np_random(s)[0] for s in seeds]
+        options = dict(options or {})
+        scenarios = options.pop("scenarios", None)
+        if options:
+            raise ValueError(f"unknown reset option(s) {sorted(options)}; known: ['scenarios']")
+        if scenarios is not None:
+            if len(scenarios) != self.num_envs:
+                raise ValueError(f"options['scenarios'] needs {self.num_envs} entries, got {len(scenarios)}")
+            scenarios = [build(s, seed=int(self._rngs[i].integers(0, 2 ** 31 - 1)), drivers=self.config.drivers)
+                         if isinstance(s, str) else s for i, s in enumerate(scenarios)]
+            for s in scenarios:
+                if s is not None and not isinstance(s, Scenario):
+                    raise TypeError(f"options['scenarios'] entries must be ids or Scenarios, got {type(s).__name__}")
+        info = self._reset_rows(list(range(self.num_envs)), scenarios)
+        info["t"] = np.zeros(self.num_envs)
+        info["_t"] = np.ones(self.num_envs, dtype=bool)
+        self._autoreset[:] = False
+        self._started = True
+        return self._obs(), info
+
+    def step(self, actions):
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        a = check_actions(actions, (self.num_envs, 1))[:, 0]
+        resetting = np.flatnonzero(self._autoreset)
+        active = ~self._autoreset
+        reward, term, trunc, raw = self.core.step(action_to_accel(a, self.config), active=active)
+        reward = np.where(active, reward, 0.0)
+        term = term & active
+        trunc = trunc & active
+        infos: dict = {}
+        for key in _STEP_KEYS:
+            infos[key] = np.asarray(raw[key]).copy()
+            infos["_" + key] = active.copy()
+        infos["modes"] = raw["modes"].copy()
+        infos["_modes"] = active.copy()
+        infos["rewards"] = {k: np.where(active, v, 0.0) for k, v in raw["rewards"].items()}
+        infos["_rewards"] = active.copy()
+        final = raw["final"]
+        if final:
+            done = np.zeros(self.num_envs, dtype=bool)
+            done[list(final)] = True
+            score = np.zeros(self.num_envs)
+            qualified = np.zeros(self.num_envs, dtype=bool)
+            ret = np.zeros(self.num_envs)
+            report = np.empty(self.num_envs, dtype=object)
+            for r, f in final.items():
+                score[r], qualified[r], ret[r], report[r] = f["score"], f["qualified"], f["episode_return"], f["report"]
+            infos.update({"score": score, "_score": done, "qualified": qualified, "_qualified": done.copy(),
+                          "episode_return": ret, "_episode_return": done.copy(), "report": report,
+                          "_report": done.copy()})
+        if resetting.size:
+            info_reset = self._reset_rows(resetting.tolist())
+            infos.update(info_reset)
+            infos["t"][resetting] = 0.0
+            infos["_t"][resetting] = True
+        self._autoreset = term | trunc
+        return self._obs(), reward, term, trunc, infos
+
+    def render(self):
+        if self.render_mode is None:
+            return None
+        return tuple(self.core.frame(b) for b in range(self.num_envs))

@@ -1,0 +1,150 @@
+"""Score a controller over episodes of an environment (what ``acc-gym evaluate`` runs).
+
+A controller is any object with ``predict(obs, deterministic=True)`` returning the action
+(or ``(action, state)``, as stable-baselines3 models do): a built-in name of
+:data:`agents.controllers.BUILTINS`, or ``"module:attribute"`` naming such an object, a
+class or a factory that makes one.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+
+import numpy as np
+
+
+def load_controller(ref):
+    """A controller from a built-in name, ``"module:attribute"``, or an object with ``predict``."""
+    if hasattr(ref, "predict"):
+        return ref
+    if not isinstance(ref, str):
+        raise TypeError(f"a controller reference must be a name, 'module:attribute' or an object with predict(), "
+                        f"got {type(ref).__name__}")
+    from agents.controllers import BUILTINS
+
+    if ref in BUILTINS:
+        return BUILTINS[ref]()
+    if ":" not in ref:
+        raise ValueError(f"unknown controller {ref!r}: use a built-in name {sorted(BUILTINS)} or 'module:attribute'")
+    module_name, attr = ref.split(":", 1)
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise ValueError(f"controller {ref!r}: cannot import module {module_name!r} ({exc})") from None
+    obj = module
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            raise ValueError(f"controller {ref!r}: module {module_name!r} has no attribute {attr!r}")
+        obj = getattr(obj, part)
+    if isinstance(obj, type) or (not hasattr(obj, "predict") and callable(obj)):
+        obj = obj()  # a class or a factory
+    if not hasattr(obj, "predict"):
+        raise ValueError(f"controller {ref!r} has no predict(obs, deterministic=True) method")
+    return obj
+
+
+def _action(controller, obs):
+    out = controller.predict(obs, deterministic=True)
+    return out[0] if isinstance(out, tuple) else out
+
+
+def run_episode(env, controller, *, seed: int | None = None, scenario=None, record: bool = True):
+    """One episode of a (single) ACC environment driven by ``controller``.
+
+    Returns ``(final_info, trace)``: the last step's info (score, report, ...) and, with
+    ``record``, the whole scene as a :class:`~acc_gym.simulation.single_lane.WorldTrace`
+    (for :func:`acc_gym.plotting.plot_episode`)."""
+    from acc_gym.simulation.single_lane import WorldTrace
+
+    policy = load_controller(controller)
+    base = env.unwrapped
+    options = {"scenario": scenario} if scenario is not None else None
+    obs, info = env.reset(seed=seed, options=options)
+    if hasattr(policy, "reset"):
+        policy.reset()
+    world = base.core.world
+    rows: dict[str, list] = {k: [] for k in ("x", "v", "a", "a_des", "y", "a_y", "lead", "gap", "mode")}
+
+    def snap(modes):
+        for key in ("x", "v", "a", "a_des", "y", "a_y"):
+            rows[key].append(getattr(world, key)[:1].copy())
+        rows["lead"].append(world.neighbours.lead[:1].copy())
+        rows["gap"].append(world.neighbours.gap[:1].copy())
+        rows["mode"].append(np.concatenate([[-1], modes])[None, :])
+
+    if record:
+        snap(np.full(2, -1))
+    while True:
+        action = np.asarray(_action(policy, obs), dtype=np.float32)
+        if action.shape not in ((1,), ()):
+            raise ValueError(f"controller {controller!r} returned an action of shape {action.shape}; expected (1,)")
+        obs, _, term, trunc, info = env.step(action.reshape(1))
+        if record:
+            snap(info["modes"])
+        if term or trunc:
+            break
+    if not record:
+        return info, None
+    arr = {k: np.stack(v) for k, v in rows.items()}
+    trace = WorldTrace(t=np.arange(len(rows["x"])) * world.dt, **arr, present=world.present[:1].copy(),
+                       lengths=world.lengths[:1].copy(), width=world.width[:1].copy(), road=base.scenario.road)
+    return info, trace
+
+
+def evaluate(controller, env_id: str = "acc_gym/CarFollowing-v0", episodes: int = 10, seed: int = 0,
+             **env_kwargs) -> dict:
+    """Run ``episodes`` episodes (seeded once with ``seed``) and summarise their reports."""
+    import gymnasium as gym
+
+    import acc_gym  # noqa: F401  (registers the ids)
+
+    if int(episodes) != episodes or episodes < 1:
+        raise ValueError(f"episodes must be a positive integer, got {episodes!r}")
+    policy = load_controller(controller)
+    env = gym.make(env_id, **env_kwargs)
+    reports, scenarios = [], []
+    try:
+        obs, info = env.reset(seed=int(seed))
+        for ep in range(int(episodes)):
+            if ep:
+                obs, info = env.reset()
+            if hasattr(policy, "reset"):
+                policy.reset()
+            while True:
+                action = np.asarray(_action(policy, obs), dtype=np.float32)
+                if action.shape not in ((1,), ()):
+                    raise ValueError(f"controller {controller!r} returned an action of shape {action.shape}; "
+                                     f"expected (1,)")
+                obs, _, term, trunc, info = env.step(action.reshape(1))
+                if term or trunc:
+                    break
+            reports.append(info["report"])
+            scenarios.append(info["scenario"])
+    finally:
+        env.close()
+    return summarise(reports, scenarios)
+
+
+def summarise(reports: list[dict], scenarios: list[str]) -> dict:
+    """Mean score, share qualified, collisions and the extra metrics over episode reports (``to_dict()`` form)."""
+    def metric(name):
+        vals = [r["metrics"][name] for r in reports]
+        return [float(v) if not isinstance(v, str) else math.inf for v in vals if v is not None]
+
+    scores = np.array([r["score"] for r in reports])
+    ttc = metric("min_ttc")
+    overshoot = metric("speed_overshoot")
+    return {
+        "episodes": len(reports),
+        "mean_score": float(scores.mean()),
+        "share_qualified": float(np.mean([r["qualified"] for r in reports])),
+        "collisions": int(sum(bool(r["metrics"]["collision"]) for r in reports)),
+        "share_comfortable": float(np.mean(metric("share_comfortable"))),
+        "share_safe_spacing": float(np.mean(metric("share_safe_spacing"))) if metric("share_safe_spacing") else None,
+        "min_ttc": float(min(ttc)) if ttc and math.isfinite(min(ttc)) else None,
+        "max_jerk": float(max(metric("max_jerk"))),
+        "mean_speed_overshoot": float(np.mean(overshoot)) if overshoot else None,
+        "scores": [float(s) for s in scores],
+        "scenarios": scenarios,
+    }

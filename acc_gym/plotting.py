@@ -1,0 +1,117 @@
+"""Episode plots: speed, gap, acceleration and driver mode over time (headless, no pyplot).
+
+:func:`plot_episode` draws one scene of a :class:`~acc_gym.simulation.single_lane.WorldTrace`
+as four stacked panels sharing the time axis, in the manner of the MPC driver paper's
+result figures; :func:`save_figure` writes a figure atomically (temporary file in the
+same directory, then ``os.replace``), so a reader never sees a half-written image.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backend_bases import FigureCanvasBase
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from acc_gym.drivers.mpc import Mode
+
+SLOT_LABELS = ("ego", "POV", "POV2")  # slot 0, 1, 2 (scenario roles SV, POV, POV2)
+SLOT_COLOURS = ("tab:blue", "tab:red", "tab:green")
+MODE_NAMES = tuple(m.name for m in sorted(Mode))  # y tick labels of the mode panel, at values 0..3
+
+
+def _label(s: int) -> str:
+    return SLOT_LABELS[s] if s < len(SLOT_LABELS) else f"slot {s}"
+
+
+def _colour(s: int) -> str:
+    return SLOT_COLOURS[s] if s < len(SLOT_COLOURS) else f"C{s + 1}"
+
+
+def plot_episode(trace, b: int = 0, *, title: str | None = None, path=None, scenario=None) -> Figure:
+    """Scene ``b`` of ``trace`` as a :class:`~matplotlib.figure.Figure` of four panels.
+
+    From the top: speed [m/s] of each present vehicle (and the ego's set speed when
+    ``scenario`` is given); bumper gap [m] of each vehicle to the one ahead (only
+    vehicles that ever have one; ``inf`` stretches are left blank); applied acceleration
+    [m/s^2]; each vehicle's driver mode as a step plot with the mode names as tick labels
+    (vehicles without a mode, e.g. the ego or scripted ones, are skipped). Acceleration
+    and mode are held over the step that ends at each sample (``steps-pre``).
+    ``scenario``: its id (and seed) go in the title. ``path``: also save a PNG there
+    (atomically, see :func:`save_figure`).
+    """
+    t = np.asarray(trace.t, dtype=float)
+    B, S = np.shape(trace.present)
+    if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or not 0 <= b < B:
+        raise ValueError(f"b must be a scene index in 0..{B - 1}, got {b!r}")
+    for name in ("x", "v", "a", "gap", "mode"):
+        if np.shape(getattr(trace, name)) != (t.size, B, S):
+            raise ValueError(f"trace.{name} must have shape {(t.size, B, S)}, got {np.shape(getattr(trace, name))}")
+    slots = [s for s in range(S) if trace.present[b, s]]
+
+    fig = Figure(figsize=(8.0, 9.0), layout="constrained")
+    ax_v, ax_gap, ax_a, ax_mode = fig.subplots(4, 1, sharex=True)
+    for s in slots:
+        style = dict(color=_colour(s), label=_label(s), lw=1.4)
+        ax_v.plot(t, trace.v[:, b, s], **style)
+        gap = np.asarray(trace.gap[:, b, s], dtype=float)
+        if np.any(np.isfinite(gap)):
+            ax_gap.plot(t, np.where(np.isfinite(gap), gap, np.nan), **style)
+        ax_a.plot(t, trace.a[:, b, s], drawstyle="steps-pre", **style)
+        mode = np.asarray(trace.mode[:, b, s])
+        if np.any(mode >= 0):
+            ax_mode.plot(t, np.where(mode >= 0, mode, np.nan), drawstyle="steps-pre", **style)
+    if scenario is not None:
+        ax_v.axhline(scenario.set_speed, color="0.4", ls="--", lw=1.0, label="set speed")
+
+    ax_v.set_ylabel("speed [m/s]")
+    ax_gap.set_ylabel("gap [m]")
+    ax_a.set_ylabel("acceleration [m/s$^2$]")
+    ax_a.axhline(0.0, color="0.7", lw=0.8, zorder=0)
+    ax_mode.set_ylabel("mode")
+    ax_mode.set_yticks(range(len(MODE_NAMES)), MODE_NAMES)
+    ax_mode.set_ylim(-0.5, len(MODE_NAMES) - 0.5)
+    ax_mode.set_xlabel("time [s]")
+    if t.size:
+        ax_mode.set_xlim(t[0], t[-1] if t[-1] > t[0] else t[0] + 1.0)
+    for ax in (ax_v, ax_gap, ax_a, ax_mode):
+        ax.grid(True, alpha=0.3)
+        if ax.get_lines() and any(not ln.get_label().startswith("_") for ln in ax.get_lines()):
+            ax.legend(loc="best", fontsize=8)
+    if not ax_gap.get_lines():
+        ax_gap.text(0.5, 0.5, "no vehicle ahead", transform=ax_gap.transAxes, ha="center", va="center")
+    if not ax_mode.get_lines():
+        ax_mode.text(0.5, 0.5, "no driver modes", transform=ax_mode.transAxes, ha="center", va="center")
+
+    parts = [title] if title else []
+    if scenario is not None:
+        parts.append(f"{scenario.id} (seed {scenario.seed})")
+    if B > 1:
+        parts.append(f"scene {b}")
+    fig.suptitle(" -- ".join(parts) if parts else "episode")
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
+def save_figure(fig: Figure, path, *, dpi: int = 100) -> Path:
+    """Save ``fig`` to ``path`` atomically (PNG unless the suffix names another format); returns the path."""
+    path = Path(path)
+    if type(fig.canvas) is FigureCanvasBase:  # a bare Figure: give it an Agg canvas (no pyplot involved)
+        FigureCanvasAgg(fig)
+    fmt = path.suffix[1:].lower() or "png"
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fig.savefig(fh, format=fmt, dpi=dpi)
+        os.chmod(tmp, 0o644)  # mkstemp's 0600 would otherwise carry over
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path

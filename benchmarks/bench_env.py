@@ -1,0 +1,90 @@
+"""Speed of the environments: single-env and vector-env steps per second.
+
+Both run paper 004's single-lane generator restricted to its 15 three-vehicle
+configurations, so every scene has two human-like MPC drivers (POV, POV2), with random
+actions and episodes ending and restarting as they come (resets included in the time):
+
+* ``env_steps_per_s``: one ``gymnasium.make("acc_gym/SingleLane-v0")`` environment,
+  wrappers included (order enforcing, passive checker);
+* ``vector_env_steps_per_s``: the native vector env with ``--num-envs`` (256)
+  environments, counting every sub-environment step.
+
+Each figure is the median of ``--repeats`` timed runs after a warm-up run (numba
+kernels compiled, caches warm); the spread is printed too.
+
+    python benchmarks/bench_env.py            # table
+    python benchmarks/bench_env.py --json     # one JSON object
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import acc_gym  # noqa: F401  (registers the ids)
+from acc_gym.envs.config import SINGLELANE
+
+THREE_VEHICLES = tuple(i for i in SINGLELANE if i.startswith("singlelane/3/"))
+
+
+def single_env_rate(steps: int, seed: int) -> float:
+    env = gym.make("acc_gym/SingleLane-v0", scenarios=THREE_VEHICLES)
+    rng = np.random.default_rng(seed)
+    env.reset(seed=seed)
+    actions = rng.uniform(-0.3, 0.3, (steps, 1)).astype(np.float32)
+    t0 = time.perf_counter()
+    for k in range(steps):
+        _, _, term, trunc, _ = env.step(actions[k])
+        if term or trunc:
+            env.reset()
+    return steps / (time.perf_counter() - t0)
+
+
+def vector_env_rate(num_envs: int, steps: int, seed: int) -> float:
+    envs = gym.make_vec("acc_gym/SingleLane-v0", num_envs=num_envs, vectorization_mode="vector_entry_point",
+                        scenarios=THREE_VEHICLES)
+    rng = np.random.default_rng(seed)
+    envs.reset(seed=seed)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        envs.step(rng.uniform(-0.3, 0.3, (num_envs, 1)).astype(np.float32))
+    return num_envs * steps / (time.perf_counter() - t0)
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=3000, help="single-env steps per timed run")
+    parser.add_argument("--vector-steps", type=int, default=200, help="vector-env steps per timed run")
+    parser.add_argument("--num-envs", type=int, default=256)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args(argv)
+    single_env_rate(300, 99)  # warm-up: compile and cache
+    vector_env_rate(min(args.num_envs, 16), 20, 99)
+    singles = [single_env_rate(args.steps, r) for r in range(args.repeats)]
+    vectors = [vector_env_rate(args.num_envs, args.vector_steps, r) for r in range(args.repeats)]
+    out = {
+        "env_steps_per_s": float(np.median(singles)),
+        "env_steps_per_s_runs": [round(x) for x in singles],
+        "vector_env_steps_per_s": float(np.median(vectors)),
+        "vector_env_steps_per_s_runs": [round(x) for x in vectors],
+        "num_envs": args.num_envs,
+        "vector_over_single": float(np.median(vectors) / np.median(singles)),
+    }
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print(f"single env (gymnasium.make, wrappers): {out['env_steps_per_s']:,.0f} steps/s "
+              f"(runs {out['env_steps_per_s_runs']}; target >= 10,000)")
+        print(f"vector env, {args.num_envs} envs:            {out['vector_env_steps_per_s']:,.0f} steps/s "
+              f"(runs {out['vector_env_steps_per_s_runs']}; target >= 100,000)")
+        print(f"vector / single: {out['vector_over_single']:.1f}x")
+    return out
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,81 @@
+"""Per-scene replaceable drivers: MPC rows re-parameterised in place, profiles, baselines."""
+
+import numpy as np
+import pytest
+from scipy.linalg import solve_discrete_are
+
+from acc_gym.drivers import IDM, IDMParams, MPCDriver, Observation, preset, sample_drivers
+from acc_gym.drivers.qp import Horizon, riccati_terminal
+from acc_gym.drivers.scripted import ProfileDriver
+from acc_gym.drivers.slots import SlotDrivers
+from acc_gym.scenarios.spec import DriverSpec
+from acc_gym.simulation import SpeedProfile
+
+
+def obs_for(n, k):
+    """A varied, deterministic snapshot for step k."""
+    v = 15.0 + np.arange(n) + 0.1 * k
+    return Observation.build(v=v, a=0.0, gap=20.0 + 3 * np.arange(n) - 0.2 * k, v_lead=v - 1.0,
+                             a_lead=-0.5)
+
+
+def test_set_params_gives_exactly_a_fresh_driver():
+    rng = np.random.default_rng(1)
+    batch = MPCDriver(sample_drivers(rng, 4, 25.0))
+    for k in range(6):
+        batch.act(obs_for(4, k))
+    new = sample_drivers(rng, 1, 14.0)
+    batch.set_params(2, new)
+    fresh = MPCDriver(new)
+    for k in range(30):
+        a = batch.act(obs_for(4, k))
+        b = fresh.act(obs_for(4, k).take([2]))
+        assert a[2] == b[0], k
+        assert batch.mode[2] == fresh.mode[0]
+    assert batch.stats["steps"][2] == 30  # its statistics restarted
+    assert batch.params.v_desired[2] == 14.0 and batch.params.v_desired[0] == 25.0
+
+
+def test_set_params_with_an_explicit_speed_limit_and_bad_index():
+    d = MPCDriver(preset("#57"), n=2)
+    d.set_params([1], preset("#23", v_desired=20.0, v_max=26.0))
+    np.testing.assert_array_equal(d.params.speed_limit, [25.0, 26.0])
+    with pytest.raises(ValueError, match="out of range"):
+        d.set_params([2], preset("#23"))
+
+
+def test_riccati_terminal_matches_scipy():
+    h = Horizon()
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        q1, q2, r1, c = 10 ** rng.uniform(-4, 2), rng.uniform(0.1, 5), rng.uniform(1, 100), rng.uniform(0, 3)
+        a = np.array([[1.0, h.dt], [0.0, 1.0]])
+        b = np.array([[-(c * h.dt + 0.5 * h.dt ** 2)], [-h.dt]])
+        ref = solve_discrete_are(a, b, np.diag([q1, q2]), np.array([[r1]]))
+        np.testing.assert_allclose(riccati_terminal(q1, q2, r1, c, h), ref, rtol=1e-10, atol=1e-12)
+
+
+def test_slot_rows_equal_their_drivers_run_alone():
+    rng = np.random.default_rng(3)
+    mpc_params = sample_drivers(rng, 1, 20.0)
+    profile = SpeedProfile.from_segments(10.0, [(1.0, 4.0), (-2.0, 3.0), (0.0, 5.0)])
+    slot = SlotDrivers(4, 0.2)
+    slot.assign(0, DriverSpec.mpc(mpc_params))
+    slot.assign(1, DriverSpec.from_profile(profile))
+    slot.assign(2, DriverSpec("idm", {"v_desired": 22.0, "tau": 0.4}))
+    slot.assign(3, None)
+    alone = [MPCDriver(mpc_params), ProfileDriver(profile, n=1, dt=0.2), IDM(IDMParams(v_desired=22.0, tau=0.4), n=1)]
+    for k in range(25):
+        o = obs_for(4, k)
+        out = slot.act(o)
+        for j, model in enumerate(alone):
+            assert out[j] == model.act(o.take([j]))[0], (k, j)
+        assert out[3] == 0.0
+        assert slot.info["mode"][0] >= 0 and np.all(slot.info["mode"][1:] == -1)
+    # a new episode in row 0 only: row 1's profile clock runs on
+    slot.assign(0, DriverSpec.mpc(preset("#13")))
+    fresh = MPCDriver(preset("#13"))
+    o = obs_for(4, 25)
+    out = slot.act(o)
+    assert out[0] == fresh.act(o.take([0]))[0]
+    assert out[1] == alone[1].act(o.take([1]))[0]
