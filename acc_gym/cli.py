@@ -172,7 +172,8 @@ def main(argv=None) -> int:
     p_demo.add_argument("--plot", default="acc_gym_demo.png", help="where to save the episode plot ('' for none)")
     p_demo.add_argument("--json", action="store_true", help="print one JSON object")
     p_eval = sub.add_parser("evaluate", help="score a controller over episodes of an environment")
-    p_eval.add_argument("controller", help="a built-in name (acc, constant) or module:attribute")
+    p_eval.add_argument("controller", help="a built-in name (acc, cacc, mp-cacc, idm, gipps, gm, fuzzy, mpc, "
+                                           "constant) or module:attribute")
     p_eval.add_argument("--env", default="acc_gym/CarFollowing-v0", help="an environment id")
     p_eval.add_argument("--episodes", type=int, default=10)
     p_eval.add_argument("--seed", type=int, default=0)

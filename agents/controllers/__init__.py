@@ -3,11 +3,14 @@
 Every controller offers ``predict(obs, deterministic=True) -> (action, None)`` on the
 environment's observation (a single ``(7,)``/``(11,)`` vector or a batch ``(n, 7)``) and
 ``reset()``, so the evaluator treats them and trained policies alike. Built-in names
-(:data:`BUILTINS`) are what ``acc-gym evaluate NAME`` accepts.
+(:data:`BUILTINS`, factories) are what ``acc-gym evaluate NAME`` accepts.
 """
 
 from agents.controllers.linear import ConstantSpeed, LinearACC
+from agents.controllers.models import ModelController, cacc, fuzzy, gipps, gm, idm, mp_cacc, mpc
 
-BUILTINS = {"acc": LinearACC, "constant": ConstantSpeed}
+BUILTINS = {"acc": LinearACC, "cacc": cacc, "mp-cacc": mp_cacc, "idm": idm, "gipps": gipps, "gm": gm,
+            "fuzzy": fuzzy, "mpc": mpc, "constant": ConstantSpeed}
 
-__all__ = ["BUILTINS", "ConstantSpeed", "LinearACC"]
+__all__ = ["BUILTINS", "ConstantSpeed", "LinearACC", "ModelController", "cacc", "fuzzy", "gipps", "gm", "idm",
+           "mp_cacc", "mpc"]

@@ -1,0 +1,113 @@
+"""The package's car-following models as controllers on the environment's observation.
+
+:class:`ModelController` turns the observation vector into an
+:class:`~acc_gym.drivers.base.Observation` (gap ``inf`` when nothing is in range, the
+vehicle ahead's speed from the relative speed, its acceleration and the second vehicle
+ahead from the V2V entries when the environment has ``v2v=True``; without V2V the
+acceleration is estimated from the change of the vehicle ahead's speed over a step and
+there is no second vehicle), asks a
+batched model of :mod:`acc_gym.drivers` for the desired acceleration, and maps it onto
+the action scale. The model is (re)built whenever the observed set speed or time gap
+changes -- a new episode -- so each episode starts with fresh delay buffers and the
+model's desired speed and time gap follow the scenario's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from acc_gym.drivers.base import Observation
+from acc_gym.drivers.baselines import (ACC, GM, IDM, ACCParams, Fuzzy, FuzzyParams, Gipps, GippsParams, GMParams,
+                                       IDMParams)
+from acc_gym.drivers.mpc import MPCDriver, MPCDriverParams
+from agents.controllers.linear import _Policy
+
+
+def observation(o: np.ndarray) -> Observation:
+    """An :class:`Observation` (arrays ``(n,)``) from observation vectors ``(n, 7)`` or ``(n, 11)``."""
+    v = o[:, 0].copy()
+    seen = o[:, 4] > 0.5
+    kw = {}
+    if o.shape[1] >= 11:
+        seen2 = o[:, 10] > 0.5
+        kw = dict(gap2=np.where(seen2, o[:, 8], np.inf), v_lead2=np.maximum(v + o[:, 9], 0.0), a_lead2=np.zeros_like(v))
+    return Observation(v=v, a=o[:, 1].copy(), gap=np.where(seen, o[:, 2], np.inf),
+                       v_lead=np.maximum(v + o[:, 3], 0.0),
+                       a_lead=o[:, 7].copy() if o.shape[1] >= 11 else np.zeros_like(v), **kw)
+
+
+class ModelController(_Policy):
+    """A model of :mod:`acc_gym.drivers` as a controller. ``make(set_speed, time_gap, n)``
+    returns the model for ``n`` vehicles (arrays of set speeds [m/s] and time gaps [s])."""
+
+    def __init__(self, name: str, make, accel_max: float = 3.0, decel_max: float = 8.0, dt: float = 0.2):
+        super().__init__(accel_max, decel_max)
+        self.name, self.make, self.dt = name, make, dt
+        self.reset()
+
+    def reset(self) -> None:
+        self._model, self._key, self._v_lead = None, None, None
+
+    def _accel(self, o: np.ndarray) -> np.ndarray:
+        key = (o.shape[0], tuple(o[:, 5].round(6)), tuple(o[:, 6].round(6)))
+        if key != self._key:
+            self._model, self._key = self.make(o[:, 5].astype(float), o[:, 6].astype(float), o.shape[0]), key
+            self._v_lead = None
+        obs = observation(o.astype(float))
+        if o.shape[1] < 11:  # no V2V: estimate the vehicle ahead's acceleration from its speed (as radar ACCs do)
+            seen = np.isfinite(obs.gap)
+            prev = self._v_lead
+            if prev is not None:
+                known = seen & np.isfinite(prev)
+                obs.a_lead = np.where(known, np.clip((obs.v_lead - np.where(known, prev, 0.0)) / self.dt, -10.0, 10.0),
+                                      0.0)
+            self._v_lead = np.where(seen, obs.v_lead, np.nan)
+        return self._model.act(obs)
+
+    def __repr__(self) -> str:
+        return f"ModelController({self.name!r})"
+
+
+def cacc(**kw) -> ModelController:
+    """CACC (paper 004 Eq. 2): the linear ACC plus 0.6 x the vehicle ahead's acceleration, at the
+    scenario's time gap; with ``v2v=True`` the acceleration is communicated, without it estimated
+    from the vehicle ahead's speed."""
+    return ModelController("cacc", lambda vs, h, n: ACC(ACCParams(k1=0.3, k2=1.2, k3=0.6, s0=2.5, time_gap=h, v_set=vs),
+                                                         n=n), **kw)
+
+
+def mp_cacc(**kw) -> ModelController:
+    """Multi-predecessor CACC (Eq. 3): one CACC law per vehicle ahead (the second one's acceleration is
+    not observed: k3 acts on the first only), the minimum taken; needs ``v2v=True``."""
+    return ModelController("mp-cacc", lambda vs, h, n: ACC(ACCParams(k1=0.3, k2=1.2, k3=0.6, s0=2.5, time_gap=h,
+                                                                     v_set=vs, predecessors=2), n=n), **kw)
+
+
+def idm(**kw) -> ModelController:
+    """IDM (Treiber et al. 2000) at the scenario's set speed and time gap."""
+    return ModelController("idm", lambda vs, h, n: IDM(IDMParams(v_desired=vs, time_gap=h), n=n), **kw)
+
+
+def gipps(**kw) -> ModelController:
+    """Gipps (1981) with its default braking (-3 m/s^2 wished, -3.5 assumed for the leader)."""
+    return ModelController("gipps", lambda vs, h, n: Gipps(GippsParams(v_desired=vs), n=n), **kw)
+
+
+def gm(**kw) -> ModelController:
+    """GM / Gazis-Herman-Rothery with the free-road law (paper 003's GM)."""
+    return ModelController("gm", lambda vs, h, n: GM(GMParams(v_desired=vs), n=n), **kw)
+
+
+def fuzzy(**kw) -> ModelController:
+    """Paper 003's fuzzy-reasoning follower at the scenario's time gap."""
+    return ModelController("fuzzy", lambda vs, h, n: Fuzzy(FuzzyParams(v_desired=vs, h=h), n=n), **kw)
+
+
+def mpc(**kw) -> ModelController:
+    """An MPC-ACC: the human-like driver's QP machinery (12 s horizon, jerk bound 2.5 m/s^3, soft
+    gap constraints, terminal stoppability) with ACC settings: time gap = the scenario's, 2.5 m
+    standstill gap, braking down to -4 m/s^2 outside emergencies and the tyre limit in them."""
+    def make(vs, h, n):
+        return MPCDriver(MPCDriverParams(a_max=2.0, a_min=-4.0, a_req_sail=-1.0, a_sail=-0.3, q1=1.0, r1=40.0,
+                                         c_tg=h, x_min=2.5, v_desired=vs), n=n)
+    return ModelController("mpc", make, **kw)
