@@ -238,16 +238,21 @@ def _print_report(r: dict) -> None:
           f"(j_x = {r['j_x']:.3f}, j_y = {r['j_y']:.3f})")
     m = r["metrics"]
     safe = "n/a" if m["share_safe_spacing"] is None else f"{m['share_safe_spacing']:.1%}"
+    def num(x, unit):
+        return "none" if x is None or isinstance(x, str) else f"{x:.2f} {unit}"
+
     print(f"  collision {m['collision']}, comfortable {m['share_comfortable']:.1%}, safe spacing {safe}, "
-          f"min TTC {m['min_ttc']} s, max jerk {m['max_jerk']:.2f} m/s^3, min gap {m['min_gap']}")
+          f"min TTC {num(m['min_ttc'], 's')}, max jerk {m['max_jerk']:.2f} m/s^3, min gap {num(m['min_gap'], 'm')}")
 
 
 def _print_summary(controller: str, env_id: str, s: dict) -> None:
     print(f"{controller} on {env_id}, {s['episodes']} episodes:")
     print(f"  mean score {s['mean_score']:.1f}, qualified {s['share_qualified']:.0%}, collisions {s['collisions']}")
     safe = "n/a" if s["share_safe_spacing"] is None else f"{s['share_safe_spacing']:.1%}"
-    print(f"  comfortable {s['share_comfortable']:.1%}, safe spacing {safe}, min TTC {s['min_ttc']} s, "
-          f"max jerk {s['max_jerk']:.2f} m/s^3, mean speed overshoot {s['mean_speed_overshoot']}")
+    ttc = "none" if s["min_ttc"] is None else f"{s['min_ttc']:.2f} s"
+    os_ = "n/a" if s["mean_speed_overshoot"] is None else f"{s['mean_speed_overshoot']:.2f}"
+    print(f"  comfortable {s['share_comfortable']:.1%}, safe spacing {safe}, min TTC {ttc}, "
+          f"max jerk {s['max_jerk']:.2f} m/s^3, mean speed overshoot {os_}")
 
 
 if __name__ == "__main__":  # pragma: no cover
