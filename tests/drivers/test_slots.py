@@ -79,3 +79,21 @@ def test_slot_rows_equal_their_drivers_run_alone():
     out = slot.act(o)
     assert out[0] == fresh.act(o.take([0]))[0]
     assert out[1] == alone[1].act(o.take([1]))[0]
+
+
+def test_a_large_batch_uses_the_parallel_kernel_and_gives_the_same_numbers():
+    """Vector envs of >= 128 scenes step their drivers with the parallel kernel: each row must still
+    equal the driver stepped alone (what makes a large vector env equal single envs)."""
+    rng = np.random.default_rng(0)
+    p = sample_drivers(rng, 130, rng.uniform(10, 30, 130))
+    big = MPCDriver(p)
+    rows = (0, 57, 129)
+    alone = [MPCDriver(p.take([i])) for i in rows]
+    assert big._parallel and not alone[0]._parallel
+    for _ in range(40):
+        v = rng.uniform(5, 30, 130)
+        o = Observation.build(v=v, a=rng.uniform(-1, 1, 130), gap=rng.uniform(3, 80, 130),
+                              v_lead=np.maximum(v + rng.normal(0, 3, 130), 0.0), a_lead=rng.uniform(-3, 1, 130))
+        a = big.act(o)
+        for model, i in zip(alone, rows):
+            assert a[i] == model.act(o.take([i]))[0]
