@@ -280,7 +280,7 @@ class CondensedQP:
         return float(0.5 * z @ self.hessian @ z + q @ z)
 
 
-@lru_cache(maxsize=4096)
+@lru_cache(maxsize=256)  # ~230 kB each: sampled drivers rarely repeat, presets do
 def condensed_qp(q1: float, q2: float, r1: float, c_tg: float, horizon: Horizon,
                  slack_linear: float = SLACK_LINEAR, slack_quadratic: float = SLACK_QUADRATIC,
                  r_jerk: float = 0.0) -> CondensedQP:
