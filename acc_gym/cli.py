@@ -11,6 +11,11 @@ scores a controller (a built-in name, or ``module:attribute`` naming an object w
 ``predict(obs, deterministic=True)``) and prints the mean score, the share qualified,
 collisions and the extra metrics.
 
+    acc-gym train {ppo,sac,td3} --env ID --timesteps T --seed S --out DIR [--num-envs 8]
+
+trains a policy with stable-baselines3 on the native vector env (progress bar, periodic
+evaluation on held-out seeds with the 100-point score, checkpoints, a manifest).
+
     acc-gym driver-demo [--driver #57] [--speed 25] [--json]
 
 simulates an MPC human-like driver behind a lead that accelerates, cruises, brakes to a
@@ -179,6 +184,16 @@ def main(argv=None) -> int:
     p_eval.add_argument("--seed", type=int, default=0)
     p_eval.add_argument("--drivers", default=None, help="surrounding drivers (typical, atypical, malicious, idm, ...)")
     p_eval.add_argument("--json", action="store_true", help="print one JSON object")
+    p_tr = sub.add_parser("train", help="train an ACC policy with stable-baselines3 (needs the rl extra)")
+    p_tr.add_argument("algo", choices=["ppo", "sac", "td3"])
+    p_tr.add_argument("--env", default="acc_gym/CarFollowing-v0")
+    p_tr.add_argument("--timesteps", type=int, default=100_000)
+    p_tr.add_argument("--seed", type=int, default=0)
+    p_tr.add_argument("--out", required=True, help="run directory (model, checkpoints, evaluations, manifest)")
+    p_tr.add_argument("--num-envs", type=int, default=8)
+    p_tr.add_argument("--eval-freq", type=int, default=None, help="timesteps between evaluations (default T/5)")
+    p_tr.add_argument("--eval-episodes", type=int, default=5)
+    p_tr.add_argument("--no-progress", action="store_true", help="no progress bar")
     p_dd = sub.add_parser("driver-demo", help="simulate an MPC human-like driver and print what it did")
     p_dd.add_argument("--driver", default="#57", help="paper 001 Table 4 preset: #23, #57, #61 or #13")
     p_dd.add_argument("--speed", type=float, default=25.0, help="the lead's cruise speed [m/s]")
@@ -214,6 +229,20 @@ def main(argv=None) -> int:
             _print_report(out["report"])
             if out["plot"]:
                 print(f"plot: {out['plot']}")
+    elif args.command == "train":
+        try:
+            from agents.rl.train import train
+        except ImportError as exc:
+            parser.error(f"training needs stable-baselines3 and torch: pip install 'acc-gym[rl]' ({exc})")
+        try:
+            run = train(args.algo, args.env, args.timesteps, args.seed, args.out, args.num_envs, args.eval_freq,
+                        args.eval_episodes, progress=not args.no_progress)
+        except (ValueError, TypeError) as exc:
+            parser.error(str(exc))
+        final = json.loads((run / "manifest.json").read_text())["final_evaluation"]
+        print(f"{args.algo} on {args.env}: {final['timesteps']} timesteps; held-out evaluation: mean score "
+              f"{final['mean_score']:.1f}, qualified {final['share_qualified']:.0%}, collisions {final['collisions']}")
+        print(f"run directory: {run}  (score it: acc-gym evaluate {run} --env {args.env})")
     elif args.command == "evaluate":
         from acc_gym.evaluation.runner import evaluate
 

@@ -141,6 +141,16 @@ class ACCVectorEnv(VectorEnv):
         self._autoreset = term | trunc
         return self._obs(), reward, term, trunc, infos
 
+    def reset_ended(self) -> tuple[np.ndarray, np.ndarray]:
+        """Reset now, instead of at the next ``step``, the environments whose episode just ended
+        (same-step autoreset, as stable-baselines3's vector envs expect). Returns the indices
+        reset and the whole observation batch afterwards."""
+        rows = np.flatnonzero(self._autoreset)
+        if rows.size:
+            self._reset_rows(rows.tolist())
+            self._autoreset[rows] = False
+        return rows, self._obs()
+
     def render(self):
         if self.render_mode is None:
             return None

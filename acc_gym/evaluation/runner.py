@@ -2,8 +2,9 @@
 
 A controller is any object with ``predict(obs, deterministic=True)`` returning the action
 (or ``(action, state)``, as stable-baselines3 models do): a built-in name of
-:data:`agents.controllers.BUILTINS`, or ``"module:attribute"`` naming such an object, a
-class or a factory that makes one.
+:data:`agents.controllers.BUILTINS`, ``"module:attribute"`` naming such an object, a
+class or a factory that makes one, or a saved model (a run directory of ``acc-gym
+train`` or its ``model.zip``).
 """
 
 from __future__ import annotations
@@ -25,6 +26,14 @@ def load_controller(ref):
 
     if ref in BUILTINS:
         return BUILTINS[ref]()
+    from pathlib import Path
+
+    if ref.endswith(".zip") or Path(ref).is_dir():  # a saved stable-baselines3 model (acc-gym train)
+        if not Path(ref).exists():
+            raise ValueError(f"controller {ref!r}: no such file or directory")
+        from agents.rl.policy import load_policy
+
+        return load_policy(ref)
     if ":" not in ref:
         raise ValueError(f"unknown controller {ref!r}: use a built-in name {sorted(BUILTINS)} or 'module:attribute'")
     module_name, attr = ref.split(":", 1)

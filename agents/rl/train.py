@@ -1,0 +1,135 @@
+"""Train an ACC policy with stable-baselines3 on the native vector environment.
+
+    acc-gym train ppo --env acc_gym/CarFollowing-v0 --timesteps 200000 --seed 0 --out runs/ppo
+
+writes into ``--out``: ``model.zip`` (the final model), ``obs_rms.npz`` (observation
+normalisation), ``checkpoints/`` (a model and its normalisation at every evaluation),
+``evaluations.json`` (the 100-point score on held-out seeds at every evaluation) and
+``manifest.json`` (package versions, algorithm, env id, config, seeds, budget, timings),
+all written atomically. Evaluation seeds come from ``seed + 1_000_003`` -- never a
+training seed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import tempfile
+import time
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+import numpy as np
+
+from agents.rl.policy import ALGOS, MANIFEST_FILE, MODEL_FILE, RMS_FILE, SB3Policy
+
+EVAL_SEED_OFFSET = 1_000_003
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _save_rms(path: Path, vecnorm) -> None:
+    rms = vecnorm.obs_rms
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".npz")
+    os.close(fd)
+    np.savez(tmp, mean=rms.mean, var=rms.var, clip=vecnorm.clip_obs)
+    os.replace(tmp, path)
+
+
+def _save_model(model, path: Path) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".zip")
+    os.close(fd)
+    model.save(tmp)
+    os.replace(tmp, path)
+
+
+def _versions() -> dict:
+    out = {"python": platform.python_version()}
+    for pkg in ("acc-gym", "stable-baselines3", "torch", "gymnasium", "numpy"):
+        try:
+            out[pkg] = version(pkg)
+        except PackageNotFoundError:
+            out[pkg] = None
+    return out
+
+
+def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 100_000, seed: int = 0,
+          out: str | os.PathLike = "runs/acc", num_envs: int = 8, eval_freq: int | None = None,
+          eval_episodes: int = 5, progress: bool = False, algo_kwargs: dict | None = None, **env_settings) -> Path:
+    """Train ``algo`` (``ppo``, ``sac``, ``td3``) and write the run directory; returns its path."""
+    import gymnasium as gym
+    import stable_baselines3 as sb3
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    import acc_gym  # noqa: F401  (registers the ids)
+    from acc_gym.evaluation.runner import evaluate
+    from agents.rl.vec_env import SB3VecEnv
+
+    if algo not in ALGOS:
+        raise ValueError(f"unknown algorithm {algo!r}; use one of {list(ALGOS)}")
+    for name, value in (("timesteps", timesteps), ("num_envs", num_envs), ("eval_episodes", eval_episodes)):
+        if int(value) != value or value < 1:
+            raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    spec = gym.spec(env_id)  # raises for an unknown id
+    settings = {**spec.kwargs, **env_settings}
+    out = Path(out)
+    (out / "checkpoints").mkdir(parents=True, exist_ok=True)
+    venv = VecNormalize(SB3VecEnv(int(num_envs), seed=int(seed), **settings), norm_obs=True, norm_reward=False,
+                        clip_obs=10.0)
+    cls = {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[algo]
+    model = cls("MlpPolicy", venv, seed=int(seed), device="cpu", verbose=0, **(algo_kwargs or {}))
+    eval_freq = int(eval_freq) if eval_freq else max(int(timesteps) // 5, 1)
+    evaluations: list[dict] = []
+
+    def run_eval(step: int) -> dict:
+        rms = venv.obs_rms
+        policy = SB3Policy(model, rms.mean.copy(), rms.var.copy(), venv.clip_obs)
+        summary = evaluate(policy, env_id, episodes=eval_episodes, seed=int(seed) + EVAL_SEED_OFFSET, **env_settings)
+        entry = {"timesteps": step, "mean_score": summary["mean_score"], "share_qualified": summary["share_qualified"],
+                 "collisions": summary["collisions"]}
+        evaluations.append(entry)
+        ck = out / "checkpoints" / f"step_{step:09d}"
+        ck.mkdir(exist_ok=True)
+        _save_model(model, ck / MODEL_FILE)
+        _save_rms(ck / RMS_FILE, venv)
+        _atomic_write(out / "evaluations.json", json.dumps(evaluations, indent=1).encode())
+        return entry
+
+    class EvalCallback(BaseCallback):
+        def __init__(self):
+            super().__init__()
+            self.next = eval_freq
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= self.next:
+                run_eval(self.num_timesteps)
+                self.next += eval_freq
+            return True
+
+    t0 = time.time()
+    model.learn(total_timesteps=int(timesteps), callback=EvalCallback(), progress_bar=progress)
+    wall = time.time() - t0
+    done_at = int(model.num_timesteps)
+    final = evaluations[-1] if evaluations and evaluations[-1]["timesteps"] == done_at else run_eval(done_at)
+    _save_model(model, out / MODEL_FILE)
+    _save_rms(out / RMS_FILE, venv)
+    manifest = {"algo": algo, "env_id": env_id, "env_settings": {k: (list(v) if isinstance(v, tuple) else v)
+                                                                 for k, v in settings.items()},
+                "timesteps": int(model.num_timesteps), "seed": int(seed), "num_envs": int(num_envs),
+                "eval_seed": int(seed) + EVAL_SEED_OFFSET, "eval_episodes": int(eval_episodes),
+                "final_evaluation": final, "train_wall_time_s": wall, "versions": _versions(),
+                "algo_kwargs": algo_kwargs or {}}
+    _atomic_write(out / MANIFEST_FILE, json.dumps(manifest, indent=1, default=str).encode())
+    venv.close()
+    return out

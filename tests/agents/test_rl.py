@@ -1,0 +1,70 @@
+"""RL with stable-baselines3: the vector-env adapter, and tiny training runs that save, reload and score."""
+
+import json
+
+import numpy as np
+import pytest
+
+from acc_gym.evaluation.runner import evaluate, load_controller
+from agents.rl.policy import SB3Policy, load_policy
+from agents.rl.train import EVAL_SEED_OFFSET, train
+from agents.rl.vec_env import SB3VecEnv
+
+
+def test_adapter_resets_in_the_same_step_and_keeps_the_terminal_observation():
+    venv = SB3VecEnv(3, seed=4, scenarios=("ncap/ccrs/20",))  # full throttle: each episode ends in a collision
+    obs = venv.reset()
+    assert obs.shape == (3, 7)
+    v0 = obs[:, 0].copy()
+    for _ in range(200):
+        venv.step_async(np.ones((3, 1), dtype=np.float32))
+        obs, reward, done, infos = venv.step_wait()
+        if done.any():
+            break
+    assert done.all()  # identical set-ups end together
+    for i in range(3):
+        term = infos[i]["terminal_observation"]
+        assert term[2] == 0.0 and not infos[i]["TimeLimit.truncated"]  # ended at the stopped target
+        assert infos[i]["score"] <= 45.0 and not infos[i]["qualified"]
+        assert infos[i]["episode"]["r"] < -90.0  # the collision term
+        assert obs[i, 0] == v0[i] and obs[i, 2] == pytest.approx(4 * v0[i], rel=1e-5)  # a fresh episode
+
+
+def test_tiny_ppo_run_saves_reloads_and_is_scored_through_the_same_path(tmp_path):
+    run = train("ppo", "acc_gym/NCAP-v0", timesteps=256, seed=3, out=tmp_path / "ppo", num_envs=4,
+                eval_episodes=2, algo_kwargs={"n_steps": 64, "batch_size": 64})
+    manifest = json.loads((run / "manifest.json").read_text())
+    assert manifest["algo"] == "ppo" and manifest["timesteps"] >= 256 and manifest["seed"] == 3
+    assert manifest["eval_seed"] == 3 + EVAL_SEED_OFFSET and manifest["versions"]["stable-baselines3"]
+    evals = json.loads((run / "evaluations.json").read_text())
+    assert len(evals) >= 2 and evals[-1] == manifest["final_evaluation"]
+    assert len(list((run / "checkpoints").iterdir())) == len(evals)
+    policy = load_policy(run)
+    assert isinstance(policy, SB3Policy) and isinstance(load_controller(str(run)), SB3Policy)
+    a1, _ = policy.predict(np.zeros(7, np.float32))
+    a2, _ = load_policy(run / "model.zip").predict(np.zeros(7, np.float32))
+    assert a1.shape == (1,) and np.array_equal(a1, a2)
+    by_path = evaluate(str(run), "acc_gym/NCAP-v0", episodes=2, seed=9)
+    by_object = evaluate(policy, "acc_gym/NCAP-v0", episodes=2, seed=9)
+    assert by_path["scores"] == by_object["scores"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("algo", ["sac", "td3"])
+def test_tiny_off_policy_runs(tmp_path, algo):
+    run = train(algo, "acc_gym/CarFollowing-v0", timesteps=300, seed=1, out=tmp_path / algo, num_envs=2,
+                eval_episodes=1)
+    s = evaluate(str(run), "acc_gym/CarFollowing-v0", episodes=1, seed=2)
+    assert s["episodes"] == 1 and 0.0 <= s["mean_score"] <= 100.0
+
+
+def test_bad_references_and_runs(tmp_path):
+    with pytest.raises(ValueError, match="no manifest.json"):
+        load_policy(tmp_path)
+    (tmp_path / "manifest.json").write_text("{broken")
+    with pytest.raises(ValueError, match="broken manifest"):
+        load_policy(tmp_path)
+    with pytest.raises(ValueError, match="no such file"):
+        load_controller(str(tmp_path / "missing.zip"))
+    with pytest.raises(ValueError, match="unknown algorithm"):
+        train("dqn", out=tmp_path / "x")
