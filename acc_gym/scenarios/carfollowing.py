@@ -13,7 +13,8 @@ run (the leaderboard's suites use several seeds as "several drivers"):
 * start-up: segments of 2-4 s at 0.8-1.8 m/s^2 (at most 1.4 above 20 m/s), with a
   30 % chance of a 1-2 s hesitation (-0.3 to 0.3 m/s^2) after each, and one slowdown
   (0.4-1.0 m/s^2 for 1.5-3 s) once past 40-75 % of the limit, until the limit (so every
-  run has a deceleration before the stop, even at 120 km/h where no cruise dip fits);
+  run has a deceleration before the stop, even at 120 km/h where no cruise dip fits),
+  drawn again if it leaves no room to brake (about 1 in 1000 runs at 120 km/h);
 * cruise: at the limit, with dips every 3-8 s -- slowing by 1.5-4.5 m/s (at most a
   quarter of the limit) at 0.4-1.2 m/s^2, then back at 0.5-1.0 m/s^2 -- as long as they fit;
 * emergency stop: braking at ``brake_decel`` from the limit so that the BV's front bumper
@@ -37,38 +38,44 @@ from acc_gym.simulation.single_lane import Road
 
 LENGTH = 4.7  # [m]
 SPEEDS_KMH = (60, 90, 120)
+MAX_STARTUP_DRAWS = 50  # start-ups drawn before the road is declared too short
 
 
 def bv_profile(rng: np.random.Generator, v_limit: float, x_start: float, x_stop: float, brake_decel: float,
                hold: float) -> SpeedProfile:
     """The BV's irregular speed profile from rest at ``x_start`` to rest at ``x_stop`` [m]."""
-    segs: list[tuple[float, float]] = []
-    v, x = 0.0, x_start
-
-    def add(acc: float, dur: float) -> None:
-        nonlocal v, x
-        segs.append((acc, dur))
-        x += v * dur + 0.5 * acc * dur * dur
-        v += acc * dur
-
-    dip_at = rng.uniform(0.4, 0.75) * v_limit  # one sure slowdown in the start-up
-    dipped = False
-    while v < v_limit - 1e-9:  # start-up
-        acc = rng.uniform(0.8, 1.8 if v < 20.0 else 1.4)
-        dur = min(rng.uniform(2.0, 4.0), (v_limit - v) / acc)
-        add(acc, dur)
-        if not dipped and v >= dip_at and v < v_limit - 1e-9:
-            dipped = True
-            dec = rng.uniform(0.4, 1.0)
-            add(-dec, min(rng.uniform(1.5, 3.0), 0.25 * v / dec))
-        if v < v_limit - 1e-9 and rng.random() < 0.3:
-            hes = rng.uniform(-0.3, 0.3)
-            hd = rng.uniform(1.0, 2.0)
-            if v + hes * hd > 0.5:
-                add(hes, hd)
-        if v > v_limit:
-            v = v_limit
     x_brake = x_stop - v_limit ** 2 / (2.0 * brake_decel)
+    for _ in range(MAX_STARTUP_DRAWS):  # a start-up that leaves room to brake (redrawn if not, rarely)
+        segs: list[tuple[float, float]] = []
+        v, x = 0.0, x_start
+
+        def add(acc: float, dur: float) -> None:
+            nonlocal v, x
+            segs.append((acc, dur))
+            x += v * dur + 0.5 * acc * dur * dur
+            v += acc * dur
+
+        dip_at = rng.uniform(0.4, 0.75) * v_limit  # one sure slowdown in the start-up
+        dipped = False
+        while v < v_limit - 1e-9:  # start-up
+            acc = rng.uniform(0.8, 1.8 if v < 20.0 else 1.4)
+            dur = min(rng.uniform(2.0, 4.0), (v_limit - v) / acc)
+            add(acc, dur)
+            if not dipped and v >= dip_at and v < v_limit - 1e-9:
+                dipped = True
+                dec = rng.uniform(0.4, 1.0)
+                add(-dec, min(rng.uniform(1.5, 3.0), 0.25 * v / dec))
+            if v < v_limit - 1e-9 and rng.random() < 0.3:
+                hes = rng.uniform(-0.3, 0.3)
+                hd = rng.uniform(1.0, 2.0)
+                if v + hes * hd > 0.5:
+                    add(hes, hd)
+            if v > v_limit:
+                v = v_limit
+        if x <= x_brake:
+            break
+    else:
+        raise ValueError(f"the road is too short for the BV to reach {v_limit:.1f} m/s and stop in time")
     while True:  # cruise with dips, while one more cruise + dip fits
         cruise = rng.uniform(3.0, 8.0)
         dv = min(rng.uniform(1.5, 4.5), 0.25 * v_limit)
@@ -79,8 +86,6 @@ def bv_profile(rng: np.random.Generator, v_limit: float, x_start: float, x_stop:
         add(0.0, cruise)
         add(-dec, dv / dec)
         add(acc, dv / acc)
-    if x_brake < x:
-        raise ValueError(f"the road is too short for the BV to reach {v_limit:.1f} m/s and stop in time")
     add(0.0, (x_brake - x) / v_limit)
     add(-brake_decel, v_limit / brake_decel)
     profile = SpeedProfile.from_segments(0.0, segs + [(0.0, hold)])

@@ -236,3 +236,17 @@ def test_ego_stops_and_goes_without_collision(sng):
     assert v0.max() > 4.0  # it goes ...
     assert _stops(v0, 0.5) >= 2  # ... and is brought (nearly) to a standstill repeatedly
     assert _stops(tr.v[:, 0, 1], 0.1) >= 2  # so is the POV between them
+
+
+@pytest.mark.parametrize("seed", [179, 300, 2860])
+def test_carfollowing_120_start_up_that_leaves_no_room_is_drawn_again(seed):
+    """These seeds once drew a start-up that left no room to brake (an error that crashed a training run)."""
+    from acc_gym.scenarios import build, simulate
+    from acc_gym.drivers.baselines import IDM, IDMParams
+
+    sc = build("carfollowing/120", seed=seed, drivers="idm")
+    tr = simulate(sc, IDM(IDMParams(v_desired=sc.set_speed), n=1, dt=sc.dt))
+    assert tr.v[:, 0, 1].max() == pytest.approx(sc.set_speed, abs=0.05)
+    assert tr.x[-1, 0, 1] == pytest.approx(950.0, abs=1.0) and tr.v[-1, 0, 1] == 0.0
+    with pytest.raises(ValueError, match="road is too short"):
+        build("carfollowing/120", {"road_length": 300.0}, seed=seed)
