@@ -118,7 +118,8 @@ class ACCEnv(gym.Env):
     Per step, from the score's own criteria (:mod:`acc_gym.envs.reward`): +1 inside the
     car-following band on a car-following sample, +0.5 (1 - u_t) efficiency there, +1 for
     holding the set speed when there is nothing to follow, -0.1 (a / 3)^2 comfort, -0.02
-    (jerk / 10)^2, -2 per proper-response safety violation, -100 for a collision. Each
+    (jerk / 10)^2, -2 per proper-response safety violation, -100 for a collision, and up to
+    -0.5 while lagging far behind a vehicle it could follow. Each
     term is in ``info["rewards"]``. Parking, hanging back or oscillating earn less than
     following well. Replace it with ``reward_fn=``.
 

@@ -182,7 +182,8 @@ class EpisodeBatch:
         violation = (neg & (t - self.neg_since > grace) & ~responding) | collision
         ind = StepIndicators(v=v1, a=a1, jerk=jerk, set_speed=self.set_speed, has_lead=has, gap=gap, gap_safe=gs, q=q,
                              in_band=in_band, following=following, free=free, u=u, violation=violation,
-                             collision=collision, a_comfort=cfg.a_x_comfort)
+                             collision=collision, a_comfort=cfg.a_x_comfort, followable=followable, v_lead=v0,
+                             tau1=self.tau1)
         reward, terms = self.reward_fn(ind)
         reward = np.asarray(reward, dtype=float)
         if active is None:

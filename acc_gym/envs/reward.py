@@ -17,14 +17,18 @@ comfort         ``-w (a / 3 m/s^2)^2``                                         0
 jerk            ``-w (jerk / 10 m/s^3)^2``                                      0.02
 safety          ``-w`` on a proper-response violation                           2.0
 collision       ``-w`` once, when the ego hits the vehicle ahead (terminates)   100
+lag             ``-w min((gap - D) / D, 1)`` while a followable vehicle is       0.5
+                ahead beyond ``D = 1.2 tau1 v_lead + 5 m`` (any distance)
 ==============  ===========================================================  ==========
 
 Why an agent cannot do better by parking or oscillating than by following well: the
 positive terms are paid only for *following* (inside the band, steady, both moving) or,
 when there is nothing to follow, for holding the set speed. A parked or crawling ego
 earns neither (a followable vehicle ahead at any distance makes the step a following
-step, so hanging back out of sensor range earns nothing either), and following well earns
-the most a step can give (1.5, against 1.0 for free driving). Oscillating costs comfort
+step, so hanging back out of sensor range earns nothing either) and pays the lag term, so
+standing still behind a moving vehicle costs up to 0.5 a step rather than nothing (a PPO
+agent trained without it learned to stay parked); following well earns the most a step
+can give (1.5, against 1.0 for free driving). Oscillating costs comfort
 and jerk and leaves the band. Tailgating pays the safety penalty once Q < 0 outlasts the
 reaction time without braking. Any object with ``__call__(StepIndicators) -> (reward,
 terms)`` can replace it (``reward_fn=``).
@@ -57,6 +61,9 @@ class StepIndicators:
     violation: np.ndarray  # proper-response violation this step
     collision: np.ndarray  # the ego's gap reached 0 this step
     a_comfort: float = 3.0  # [m/s^2]
+    followable: np.ndarray | None = None  # a vehicle ahead the ego could follow (moving, not faster than v_set)
+    v_lead: np.ndarray | None = None  # [m/s]
+    tau1: np.ndarray | None = None  # [s]
 
 
 @dataclass(frozen=True)
@@ -70,6 +77,7 @@ class CriteriaReward:
     jerk: float = 0.02
     safety: float = 2.0
     collision: float = 100.0
+    lag: float = 0.5
     jerk_scale: float = 10.0  # [m/s^3]
 
     def __post_init__(self) -> None:
@@ -91,5 +99,8 @@ class CriteriaReward:
             "safety": -self.safety * s.violation,
             "collision": -self.collision * s.collision,
         }
+        if s.followable is not None:
+            far = 1.2 * s.tau1 * s.v_lead + 5.0  # [m] the band's upper edge at the lead's speed, plus 5 m
+            terms["lag"] = -self.lag * np.where(s.followable, np.clip((s.gap - far) / far, 0.0, 1.0), 0.0)
         terms = {k: np.asarray(v, dtype=float) for k, v in terms.items()}
         return sum(terms.values()), terms

@@ -26,7 +26,7 @@ SG = "acc_gym/StopAndGo-v0"
 DT = 0.2
 STEP_KEYS = {"q", "g", "gap_safe", "a_applied", "violation", "modes", "fallbacks", "rewards", "t"}
 FINAL_KEYS = {"score", "qualified", "report", "episode_return"}
-REWARD_TERMS = {"band", "efficiency", "speed", "comfort", "jerk", "safety", "collision"}
+REWARD_TERMS = {"band", "efficiency", "speed", "comfort", "jerk", "safety", "collision", "lag"}
 
 
 # ---------------------------------------------------------------------------- helpers

@@ -45,3 +45,17 @@ def test_weights_are_validated():
         CriteriaReward(band=-1.0)
     with pytest.raises(ValueError, match="jerk_scale"):
         CriteriaReward(jerk_scale=0.0)
+
+
+def test_lag_term_makes_standing_behind_a_moving_vehicle_cost():
+    kw = dict(followable=np.array([True]), v_lead=np.array([20.0]), tau1=np.array([1.5]))
+    far = 1.2 * 1.5 * 20.0 + 5.0  # 41 m
+    _, t = CriteriaReward()(ind(gap=32.0, **kw))
+    assert t["lag"][0] == 0.0  # inside the band's reach: no lag
+    _, t = CriteriaReward()(ind(gap=far * 1.5, following=False, in_band=False, **kw))
+    assert t["lag"][0] == pytest.approx(-0.5 * 0.5)
+    parked, t = CriteriaReward()(ind(v=0.0, gap=500.0, following=False, in_band=False, u=np.nan, **kw))
+    assert t["lag"][0] == -0.5 and parked[0] < 0.0  # parking now costs, instead of earning 0
+    _, t = CriteriaReward()(ind(gap=500.0, followable=np.array([False]), v_lead=np.array([20.0]),
+                                tau1=np.array([1.5])))
+    assert t["lag"][0] == 0.0  # nothing followable: no lag
