@@ -17,3 +17,12 @@ def test_bench_driver_json_keys():
         assert key in out and out[key] > 0
     assert out["driver_step_us_median"] <= out["driver_step_us_p99"] <= out["driver_step_us_max"]
     assert 0.0 < out["active_share"] < 1.0
+
+
+def test_bench_env_json_keys():
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_env.py"), "--json", "--repeats", "1",
+                        "--steps", "100", "--vector-steps", "5", "--num-envs", "8"], capture_output=True, text=True,
+                       check=True, cwd=ROOT)
+    out = json.loads(r.stdout)
+    assert out["env_steps_per_s"] > 0 and out["vector_env_steps_per_s"] > 0 and out["num_envs"] == 8
+    assert len(out["env_steps_per_s_runs"]) == 1
