@@ -86,7 +86,8 @@ class EpisodeBatch:
             self.tau1[row] = tau_cfg if tau_cfg is not None else (sc.time_gap or DEFAULT_TAU1)
             self.n_lanes[row] = sc.road.n_lanes
         rows_a = np.array(rows)
-        _, has, gap, v0, _ = self._lead_state()
+        state = self._lead_state()
+        _, has, gap, v0, _ = state
         _, q = self._q(self.world.v[:, 0], v0, gap, has)
         self.neg_since[rows_a] = np.where(q[rows_a] < 0, 0.0, np.nan)
         self.last_change[rows_a] = 0.0
@@ -97,7 +98,7 @@ class EpisodeBatch:
         if need > self._rec["t"].shape[1]:
             self._rec = {k: np.concatenate([v, np.zeros((self.n, need - v.shape[1]))], axis=1)
                          for k, v in self._rec.items()}
-        self._record(rows_a)
+        self._record(rows_a, state)
 
     def _q(self, v1, v0, gap, has):
         """Gapsafe and Q per scene (each with its own tau1)."""
@@ -114,10 +115,11 @@ class EpisodeBatch:
         v_lead = np.where(has, w.v[rows, safe], 0.0)
         return lead, has, w.neighbours.gap[:, 0], v_lead, np.where(has, w.a[rows, safe], 0.0)
 
-    def _record(self, rows) -> None:
-        """Write the current state of scenes ``rows`` into their episode records at their step."""
+    def _record(self, rows, state) -> None:
+        """Write the current state of scenes ``rows`` (``state``: :meth:`_lead_state`) into their
+        episode records at their step."""
         w = self.world
-        lead, has, gap, v_lead, a_lead = self._lead_state()
+        lead, has, gap, v_lead, a_lead = state
         k = w.k[rows]
         y = w.y[rows, 0]
         half = 0.5 * w.width[rows, 0]
@@ -156,7 +158,8 @@ class EpisodeBatch:
         w.step(a_des)
         t = w.t
         cfg = self.config.scoring
-        lead, has, gap, v0, _ = self._lead_state()
+        state = self._lead_state()
+        lead, has, gap, v0, _ = state
         v1, a1 = w.v[:, 0], w.a[:, 0]
         jerk = (a1 - a_prev) / DT
         changed = lead != self.lead_prev
@@ -189,7 +192,7 @@ class EpisodeBatch:
         if active is None:
             active = ~self.done
         rows = np.flatnonzero(active)
-        self._record(rows)
+        self._record(rows, state)
         self.episode_return[rows] += reward[rows]
         terminated = collision | (violation & self.config.terminate_on_violation)
         truncated = (w.k >= self.steps) & ~terminated
