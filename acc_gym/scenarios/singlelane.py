@@ -211,6 +211,16 @@ def _presimulate_pov(vehicles: list, t_entry: float, dt: float) -> tuple[float, 
     return float(np.interp(t_entry, times, xs)), float(np.interp(t_entry, times, vs))
 
 
+def _leader_lanes(kind: str, p: dict, suffix: str = "") -> tuple[int, LaneChange | None]:
+    """The leader's start lane and lateral move in a pair: it cuts in from the side lane, cuts out
+    to it, or keeps the lane under study."""
+    if kind == "cut-in":
+        return SIDE_LANE, LaneChange(EGO_LANE, p[f"t_lc{suffix}"], p[f"lc_duration{suffix}"])
+    if kind == "cut-out":
+        return EGO_LANE, LaneChange(SIDE_LANE, p[f"t_lc{suffix}"], p[f"lc_duration{suffix}"])
+    return EGO_LANE, None
+
+
 def _build(stype: ScenarioType, p: dict, rng: np.random.Generator, drivers: str, seed: int) -> Scenario:
     n, rel = stype.id.split("/")[1:]
     parts = rel.split("+")
@@ -228,23 +238,15 @@ def _build(stype: ScenarioType, p: dict, rng: np.random.Generator, drivers: str,
     if int(n) >= 2:
         v_pov = _leader_speed(sv_pov, v_sv, p)
         x_pov = _ahead(x_sv, v_sv, v_pov, p["gap"], t_entry)
-        pov_lane, pov_lc = EGO_LANE, None
-        if sv_pov == "cut-in":
-            pov_lane, pov_lc = SIDE_LANE, LaneChange(EGO_LANE, p["t_lc"], p["lc_duration"])
-        elif sv_pov == "cut-out":
-            pov_lc = LaneChange(SIDE_LANE, p["t_lc"], p["lc_duration"])
-        elif pov_pov2 == "lane-change":  # the POV leaves: the SV is left behind POV2 (paper 004, Example 1)
+        pov_lane, pov_lc = _leader_lanes(sv_pov, p)
+        if pov_pov2 == "lane-change":  # the POV leaves: the SV is left behind POV2 (paper 004, Example 1)
             pov_lc = LaneChange(SIDE_LANE, p["t_lc2"], p["lc_duration2"])
         vehicles.append(VehicleSpec("POV", x_pov, v_pov, pov_lane, driver_for(rng, drivers, v_pov), pov_lc, LENGTH))
     if pov_pov2 is not None:
         v_pov2 = _leader_speed(pov_pov2, v_pov, p, "2")
         t_entry2 = p["t_lc2"] + phase * p["lc_duration2"] if pov_pov2 == "cut-in" else None
         x_pov2 = _ahead(x_pov, v_pov, v_pov2, p["gap2"], t_entry2)
-        pov2_lane, pov2_lc = EGO_LANE, None
-        if pov_pov2 == "cut-in":
-            pov2_lane, pov2_lc = SIDE_LANE, LaneChange(EGO_LANE, p["t_lc2"], p["lc_duration2"])
-        elif pov_pov2 == "cut-out":
-            pov2_lc = LaneChange(SIDE_LANE, p["t_lc2"], p["lc_duration2"])
+        pov2_lane, pov2_lc = _leader_lanes(pov_pov2, p, "2")
         if "t_lc2" in p:
             moves.append(p["t_lc2"] + p["lc_duration2"])
         vehicles.append(VehicleSpec("POV2", x_pov2, v_pov2, pov2_lane, driver_for(rng, drivers, v_pov2), pov2_lc,
