@@ -7,7 +7,11 @@ linear term) and a wrong sign never silently produces nonsense.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+_SCALARS = (float, int, np.float64)  # checked with math, without building an array
 
 
 def _describe(value) -> str:
@@ -21,6 +25,10 @@ def _describe(value) -> str:
 
 def check_finite(name: str, value) -> None:
     """Raise ``ValueError`` if ``value`` holds NaN or infinity."""
+    if type(value) in _SCALARS:
+        if math.isfinite(value):
+            return
+        raise ValueError(f"{name} must be finite, got {float(value)!r}")
     arr = np.asarray(value, dtype=float)
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite, got {_describe(arr)}")
@@ -36,6 +44,10 @@ def check_not_nan(name: str, value) -> None:
 def check_positive(name: str, value) -> None:
     """Raise ``ValueError`` unless every element of ``value`` is finite and > 0."""
     check_finite(name, value)
+    if type(value) in _SCALARS:
+        if value > 0:
+            return
+        raise ValueError(f"{name} must be > 0, got {value!r}")
     arr = np.asarray(value, dtype=float)
     if np.any(arr <= 0):
         raise ValueError(f"{name} must be > 0, got {value!r}")
@@ -44,6 +56,10 @@ def check_positive(name: str, value) -> None:
 def check_nonnegative(name: str, value) -> None:
     """Raise ``ValueError`` unless every element of ``value`` is finite and >= 0."""
     check_finite(name, value)
+    if type(value) in _SCALARS:
+        if value >= 0:
+            return
+        raise ValueError(f"{name} must be >= 0, got {value!r}")
     arr = np.asarray(value, dtype=float)
     if np.any(arr < 0):
         raise ValueError(f"{name} must be >= 0, got {value!r}")

@@ -70,6 +70,7 @@ Failures
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields, replace
 from enum import IntEnum
 
@@ -137,6 +138,8 @@ class MPCDriverParams:
     jerk_emergency: float | np.ndarray = 50.0  # [m/s^3] bound on |du/dt| in emergencies
 
     def __post_init__(self) -> None:
+        if self._scalars_valid():
+            return
         for f in fields(self):
             value = getattr(self, f.name)
             if value is not None:
@@ -163,6 +166,23 @@ class MPCDriverParams:
         bad(arr["jerk_emergency"] < arr["jerk_max"], "jerk_emergency must be >= jerk_max", self.jerk_emergency)
         if self.v_max is not None:
             bad(arr["v_max"] < arr["v_desired"], "v_max must be >= v_desired", self.v_max)
+
+    def _scalars_valid(self) -> bool:
+        """True when every field is a plain number and every check below passes (one driver:
+        checked with Python floats; anything else, or any failure, takes the array checks,
+        which raise the message)."""
+        d = self.__dict__
+        for name in _FIELD_NAMES:
+            value = d[name]
+            if value is None:
+                continue
+            if type(value) not in (float, int, np.float64) or not math.isfinite(value):
+                return False
+        v_max = d["v_max"]
+        return (d["a_max"] > 0 and d["a_min"] < 0 and d["a_sail"] < 0 and d["a_req_sail"] < 0
+                and d["a_sail"] > d["a_min"] and d["q1"] >= 0 and d["q2"] > 0 and d["r1"] > 0 and d["r_jerk"] >= 0
+                and d["c_tg"] >= 0 and d["x_min"] > 0 and d["v_desired"] > 0 and d["jerk_max"] > 0
+                and d["jerk_emergency"] >= d["jerk_max"] and (v_max is None or v_max >= d["v_desired"]))
 
     @property
     def speed_limit(self):
@@ -213,6 +233,8 @@ class MPCDriverParams:
                                           for d in drivers])
         return MPCDriverParams(**out)
 
+
+_FIELD_NAMES = tuple(f.name for f in fields(MPCDriverParams))
 
 # Paper 001, Table 4 (a_max, a_min, a_req_sail, a_sail, q1, r1). The paper gives no time
 # gap, minimum gap or desired speed for them: the defaults of MPCDriverParams apply.

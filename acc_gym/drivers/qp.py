@@ -51,6 +51,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 
+import math
+
+import numba
 import numpy as np
 
 INF = 1e30  # "no bound" for the backends
@@ -163,15 +166,18 @@ def riccati_terminal(q1: float, q2: float, r1: float, c_tg: float, h: Horizon) -
     return _dare_2x1((1.0, dt, 0.0, 1.0), (bx, -dt), (q1, 0.0, 0.0, q2), r1)
 
 
+@numba.njit(cache=True, inline="always")
 def _mm(x, y):
     return (x[0] * y[0] + x[1] * y[2], x[0] * y[1] + x[1] * y[3], x[2] * y[0] + x[3] * y[2], x[2] * y[1] + x[3] * y[3])
 
 
-def _dare_2x1(a, b, q, r: float, tol: float = 1e-14, max_iter: int = 100) -> np.ndarray:
-    """The stabilising solution of the DARE for two states and one input by the structured
-    doubling algorithm, on 2x2 matrices as row-major tuples (equal to scipy's
-    ``solve_discrete_are`` to ~1e-13 relative on this problem, ten times faster: a driver's
-    QP is rebuilt at every environment reset)."""
+@numba.njit(cache=True)
+def _add(x, y):
+    return (x[0] + y[0], x[1] + y[1], x[2] + y[2], x[3] + y[3])
+
+
+@numba.njit(cache=True)
+def _sda(a, b, q, r, tol, max_iter):  # pragma: no cover - compiled
     A = a
     G = (b[0] * b[0] / r, b[0] * b[1] / r, b[1] * b[0] / r, b[1] * b[1] / r)
     H = q
@@ -182,15 +188,82 @@ def _dare_2x1(a, b, q, r: float, tol: float = 1e-14, max_iter: int = 100) -> np.
         wi = (w[3] / d, -w[1] / d, -w[2] / d, w[0] / d)
         wia = _mm(wi, A)
         at = (A[0], A[2], A[1], A[3])
-        h_new = tuple(hv + dv for hv, dv in zip(H, _mm(_mm(at, H), wia)))
-        G = tuple(gv + dv for gv, dv in zip(G, _mm(_mm(A, _mm(wi, G)), at)))
+        h_new = _add(H, _mm(_mm(at, H), wia))
+        G = _add(G, _mm(_mm(A, _mm(wi, G)), at))
         A = _mm(A, wia)
-        done = max(abs(u - v) for u, v in zip(h_new, H)) <= tol * max(1.0, max(abs(v) for v in h_new))
+        change = max(max(abs(h_new[0] - H[0]), abs(h_new[1] - H[1])), max(abs(h_new[2] - H[2]), abs(h_new[3] - H[3])))
+        scale = max(1.0, max(max(abs(h_new[0]), abs(h_new[1])), max(abs(h_new[2]), abs(h_new[3]))))
         H = h_new
-        if done:
+        if change <= tol * scale:
             break
+    return H
+
+
+def _dare_2x1(a, b, q, r: float, tol: float = 1e-14, max_iter: int = 100) -> np.ndarray:
+    """The stabilising solution of the DARE for two states and one input by the structured
+    doubling algorithm, on 2x2 matrices as row-major tuples, compiled (equal to scipy's
+    ``solve_discrete_are`` to ~1e-13 relative on this problem and far faster: a driver's
+    QP is rebuilt at every environment reset)."""
+    H = _sda(tuple(map(float, a)), tuple(map(float, b)), tuple(map(float, q)), float(r), float(tol), int(max_iter))
     s = 0.5 * (H[1] + H[2])
     return np.array([[H[0], s], [s, H[3]]])
+
+
+@numba.njit(cache=True)
+def _spd_inverse(a):  # pragma: no cover - compiled
+    """``(ok, a^-1)`` of a symmetric positive definite matrix by Cholesky, in plain loops.
+
+    Compiled loops rather than LAPACK on purpose: OpenBLAS threads its factorisations, and
+    with more busy processes than cores (vector envs in subprocesses, campaign workers)
+    a 60 x 60 inverse took milliseconds instead of tens of microseconds."""
+    n = a.shape[0]
+    L = np.zeros((n, n))
+    for j in range(n):
+        s = a[j, j]
+        for k in range(j):
+            s -= L[j, k] * L[j, k]
+        if not s > 0.0:
+            return False, L
+        d = math.sqrt(s)
+        L[j, j] = d
+        for i in range(j + 1, n):
+            s = a[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            L[i, j] = s / d
+    M = np.zeros((n, n))  # L^-1, lower triangular
+    for j in range(n):
+        M[j, j] = 1.0 / L[j, j]
+        for i in range(j + 1, n):
+            s = 0.0
+            for k in range(j, i):
+                s += L[i, k] * M[k, j]
+            M[i, j] = -s / L[i, i]
+    out = np.empty((n, n))  # a^-1 = M' M
+    for i in range(n):
+        for j in range(i + 1):
+            s = 0.0
+            for k in range(i, n):
+                s += M[k, i] * M[k, j]
+            out[i, j] = s
+            out[j, i] = s
+    return True, out
+
+
+@numba.njit(cache=True)
+def _running_sums(hinv):  # pragma: no cover - compiled
+    """``[sum_{j<=k} H^-1[:, j], sum_{j<=k} j H^-1[:, j]]`` (the driver kernel's column sums)."""
+    n = hinv.shape[0]
+    out = np.empty((2, n, n))
+    for i in range(n):
+        s0 = 0.0
+        s1 = 0.0
+        for k in range(n):
+            s0 += hinv[i, k]
+            s1 += hinv[i, k] * k
+            out[0, i, k] = s0
+            out[1, i, k] = s1
+    return out
 
 
 class CondensedQP:
@@ -224,45 +297,66 @@ class CondensedQP:
         self.horizon = horizon
         self.slack_linear = float(slack_linear)
         n = horizon.n_steps
-        tv, tp = horizon.matrices
-        # Error responses: e_x = free - (Tp + c Tv) u, e_v = free - Tv u; target: +Tp, +Tv.
-        m_ego = -np.vstack([tp + c_tg * tv, tv])  # (2N, N)
-        m_lead = np.vstack([tp, tv])  # (2N, N)
-        k = np.arange(1, n + 1) * horizon.dt
-        s_theta = np.zeros((2 * n, 2))
-        s_theta[:n, 0] = 1.0
-        s_theta[:n, 1] = k
-        s_theta[n:, 1] = 1.0
-        w = np.zeros(2 * n)
-        w[: n - 1] = q1
-        w[n: 2 * n - 1] = q2
-        self.terminal = riccati_terminal(q1, q2, r1, c_tg, horizon)
-        w[n - 1] = self.terminal[0, 0]
-        w[2 * n - 1] = self.terminal[1, 1]
-        # m_ego' W with W diagonal but for the terminal cross term P01 (rows n-1 and 2n-1)
-        mw = m_ego.T * w
-        mw[:, n - 1] += self.terminal[0, 1] * m_ego[2 * n - 1]
-        mw[:, 2 * n - 1] += self.terminal[0, 1] * m_ego[n - 1]
-        diff = np.eye(n) - np.eye(n, k=-1)  # (D u)_k = u_k - u_{k-1}, u_{-1} = u_prev
-        huu = 2.0 * (mw @ m_ego + r1 * np.eye(n) + r_jerk * diff.T @ diff)
+        self.terminal = P = riccati_terminal(q1, q2, r1, c_tg, horizon)
+        p00, p01, p11 = float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
+        b = _condensing_basis(horizon)
+        # Cost weights W on the stacked errors (e_x rows 1..N, e_v rows 1..N): q1, q2 on the
+        # stages, P on the terminal pair. With e = free - M u, M = [Tp + c Tv; Tv], the
+        # Hessian is M'WM, expanded in c over products of Tp and Tv cached per horizon:
+        # only scaled sums of N x N matrices per driver (resets build two QPs per driver).
+        x_n = b.p_n + c_tg * b.v_n  # last row of Tp + c Tv
+        mwm = (q1 * (b.pp + c_tg * b.pv_sym + c_tg * c_tg * b.vv) + q2 * b.vv
+               + p00 * np.outer(x_n, x_n) + p11 * b.vv_n + p01 * (np.outer(x_n, b.v_n) + np.outer(b.v_n, x_n)))
+        huu = 2.0 * (mwm + r1 * b.eye + r_jerk * b.dd)
         huu = 0.5 * (huu + huu.T)
+        # linear terms: M'W s_theta (free response of the errors to theta) and M'W [Tp; Tv]
+        # (the target's predicted accelerations), both with the sign of -M
+        ws_x = np.zeros((n, 2))  # W s_theta, e_x rows
+        ws_x[:, 0] = q1
+        ws_x[:, 1] = q1 * b.k_dt
+        ws_x[n - 1] = (p00, p00 * b.k_dt[-1] + p01)
+        ws_v = np.zeros((n, 2))  # W s_theta, e_v rows
+        ws_v[:, 1] = q2
+        ws_v[n - 1] = (p01, p01 * b.k_dt[-1] + p11)
+        mw_s = -(b.tp_t @ ws_x + c_tg * (b.tv_t @ ws_x) + b.tv_t @ ws_v)
         self.f_theta = np.zeros((n, 3))
-        self.f_theta[:, :2] = 2.0 * mw @ s_theta
+        self.f_theta[:, :2] = 2.0 * mw_s
         self.f_theta[0, 2] = -2.0 * r_jerk
-        self.f_lead = 2.0 * mw @ m_lead
-        chol = np.linalg.cholesky(huu)
-        hinv = np.linalg.inv(huu)
+        self._lead_args = (q1, q2, c_tg, p00, p01, p11, x_n)  # f_lead and gain_lead are made on first use
+        ok, hinv = _spd_inverse(huu)
+        if not ok:
+            raise np.linalg.LinAlgError("the condensed Hessian is not positive definite")
         self.hinv = hinv
         # column sums for the driver kernel: [sum_{j<=k} H^-1[:, j], sum_{j<=k} j H^-1[:, j]]
-        self.hinv_sums = np.stack([np.cumsum(hinv, axis=1), np.cumsum(hinv * np.arange(n), axis=1)])
+        self.hinv_sums = _running_sums(hinv)
         self.gain = -hinv @ self.f_theta
-        self.gain_lead = -hinv @ self.f_lead
         self.hessian = np.zeros((n + 1, n + 1))
         self.hessian[:n, :n] = huu
         self.hessian[n, n] = 2.0 * slack_quadratic
-        self._chol = chol
-        for arr in (self.f_theta, self.f_lead, self.gain, self.gain_lead, self.hessian, self.hinv, self.hinv_sums):
+        for arr in (self.f_theta, self.gain, self.hessian, self.hinv, self.hinv_sums):
             arr.setflags(write=False)
+
+    @property
+    def f_lead(self) -> np.ndarray:
+        """``(N, N)``: the linear term's response to the target's predicted accelerations (made
+        on first use: only the car-following law of a driver that predicts them needs it)."""
+        if "_f_lead" not in self.__dict__:
+            q1, q2, c_tg, p00, p01, p11, x_n = self._lead_args
+            b = _condensing_basis(self.horizon)
+            mw_lead = -(q1 * (b.pp + c_tg * b.vp) + q2 * b.vv + p00 * np.outer(x_n, b.p_n) + p11 * b.vv_n
+                        + p01 * (np.outer(x_n, b.v_n) + np.outer(b.v_n, b.p_n)))
+            f_lead = 2.0 * mw_lead
+            gain_lead = -self.hinv @ f_lead
+            f_lead.setflags(write=False)
+            gain_lead.setflags(write=False)
+            self._f_lead, self._gain_lead = f_lead, gain_lead
+        return self._f_lead
+
+    @property
+    def gain_lead(self) -> np.ndarray:
+        """``(N, N)``: the unconstrained law's response to the target's predicted accelerations."""
+        self.f_lead  # noqa: B018  (makes both)
+        return self._gain_lead
 
     @property
     def key(self) -> tuple:
@@ -278,6 +372,43 @@ class CondensedQP:
 
     def objective(self, z: np.ndarray, q: np.ndarray) -> float:
         return float(0.5 * z @ self.hessian @ z + q @ z)
+
+
+@dataclass(frozen=True)
+class _Basis:
+    """Products of a horizon's prediction matrices that every condensed QP is built from.
+
+    Stage rows are ``1..N-1`` (weights q1, q2), the terminal row ``N`` (weight P)::
+
+        pp = Tp_s' Tp_s,  vp = Tv_s' Tp_s,  pv_sym = vp + vp',  vv = Tv_s' Tv_s
+        p_n, v_n = last rows of Tp, Tv;  vv_n = v_n v_n'
+    """
+
+    pp: np.ndarray
+    vp: np.ndarray
+    pv_sym: np.ndarray
+    vv: np.ndarray
+    p_n: np.ndarray
+    v_n: np.ndarray
+    vv_n: np.ndarray
+    tp_t: np.ndarray  # Tp'
+    tv_t: np.ndarray  # Tv'
+    k_dt: np.ndarray  # (k dt) for k = 1..N [s]
+    eye: np.ndarray
+    dd: np.ndarray  # D'D, (D u)_k = u_k - u_{k-1}
+
+
+@lru_cache(maxsize=16)
+def _condensing_basis(h: Horizon) -> _Basis:
+    n = h.n_steps
+    tv, tp = h.matrices
+    tp_s, tv_s = tp[: n - 1], tv[: n - 1]
+    vp = tv_s.T @ tp_s
+    diff = np.eye(n) - np.eye(n, k=-1)
+    return _Basis(pp=tp_s.T @ tp_s, vp=vp, pv_sym=vp + vp.T, vv=tv_s.T @ tv_s, p_n=tp[-1].copy(),
+                  v_n=tv[-1].copy(), vv_n=np.outer(tv[-1], tv[-1]), tp_t=np.ascontiguousarray(tp.T),
+                  tv_t=np.ascontiguousarray(tv.T), k_dt=np.arange(1, n + 1) * h.dt, eye=np.eye(n),
+                  dd=diff.T @ diff)
 
 
 @lru_cache(maxsize=256)  # ~230 kB each: sampled drivers rarely repeat, presets do

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from acc_gym.drivers.slots import SlotDrivers
+from acc_gym.envs import _kernel as K
 from acc_gym.envs.config import EnvConfig
 from acc_gym.envs.reward import StepIndicators
 from acc_gym.evaluation.scoring import DEFAULT_TAU1, score_episode
@@ -25,7 +26,7 @@ from acc_gym.simulation.single_lane import SingleLaneWorld
 SLOTS = 3
 DT = 0.2  # [s] every built-in scenario's step
 LANE_WIDTH = 3.75  # [m]
-_RECORD = ("t", "v", "a", "gap", "v_lead", "a_lead", "lead_id", "a_y", "d2", "d3")
+_RECORD = K.RECORD  # the episode record's columns (EgoTrace's)
 
 
 class EpisodeBatch:
@@ -53,7 +54,18 @@ class EpisodeBatch:
         self.lead_prev = np.full(self.n, -1)
         self.done = np.ones(self.n, dtype=bool)
         self.episode_return = np.zeros(self.n)
-        self._rec = {k: np.zeros((self.n, 1)) for k in _RECORD}
+        self._set_record(np.zeros((len(_RECORD), self.n, 1)))
+        cfg = config.scoring
+        self._cfg = np.array([cfg.b0, cfg.b1, cfg.band_width, cfg.steady_dv, cfg.moving_speed, cfg.transient,
+                              cfg.sensor_range, cfg.response_decel, cfg.stop_speed], dtype=float)
+
+    def _set_record(self, arr: np.ndarray) -> None:
+        self._rec_arr = arr  # (columns, scenes, steps)
+
+    @property
+    def _rec(self) -> dict[str, np.ndarray]:
+        """The episode records by column, views ``(scenes, steps)`` into one array."""
+        return dict(zip(_RECORD, self._rec_arr))
 
     # ------------------------------------------------------------------ episodes
     def reset_rows(self, rows, rngs, scenarios=None) -> None:
@@ -95,10 +107,10 @@ class EpisodeBatch:
         self.done[rows_a] = False
         self.episode_return[rows_a] = 0.0
         need = int(self.steps[rows_a].max()) + 1
-        if need > self._rec["t"].shape[1]:
-            self._rec = {k: np.concatenate([v, np.zeros((self.n, need - v.shape[1]))], axis=1)
-                         for k, v in self._rec.items()}
-        self._record(rows_a, state)
+        have = self._rec_arr.shape[2]
+        if need > have:
+            self._set_record(np.concatenate([self._rec_arr, np.zeros((len(_RECORD), self.n, need - have))], axis=2))
+        self._record(rows_a)
 
     def _q(self, v1, v0, gap, has):
         """Gapsafe and Q per scene (each with its own tau1)."""
@@ -115,20 +127,12 @@ class EpisodeBatch:
         v_lead = np.where(has, w.v[rows, safe], 0.0)
         return lead, has, w.neighbours.gap[:, 0], v_lead, np.where(has, w.a[rows, safe], 0.0)
 
-    def _record(self, rows, state) -> None:
-        """Write the current state of scenes ``rows`` (``state``: :meth:`_lead_state`) into their
-        episode records at their step."""
+    def _record(self, rows) -> None:
+        """Write the current state of scenes ``rows`` into their episode records at their step."""
         w = self.world
-        lead, has, gap, v_lead, a_lead = state
-        k = w.k[rows]
-        y = w.y[rows, 0]
-        half = 0.5 * w.width[rows, 0]
-        values = {"t": w.t[rows], "v": w.v[rows, 0], "a": w.a[rows, 0], "gap": gap[rows], "v_lead": v_lead[rows],
-                  "a_lead": a_lead[rows], "lead_id": lead[rows].astype(float), "a_y": w.a_y[rows, 0],
-                  "d2": y + 0.5 * self.lane_width[rows] - half,
-                  "d3": (self.n_lanes[rows] - 0.5) * self.lane_width[rows] - y - half}
-        for key, value in values.items():
-            self._rec[key][rows, k] = value
+        nb = w.neighbours
+        K.record(np.asarray(rows, dtype=np.int64), w.k, w.t, w.v, w.a, nb.lead, nb.gap, w.a_y, w.y,
+                 np.ascontiguousarray(w.width[:, 0]), self.lane_width, self.n_lanes, self._rec_arr)
 
     # ------------------------------------------------------------------ observation
     def observe(self) -> np.ndarray:
@@ -158,47 +162,30 @@ class EpisodeBatch:
         w.step(a_des)
         t = w.t
         cfg = self.config.scoring
-        state = self._lead_state()
-        lead, has, gap, v0, _ = state
-        v1, a1 = w.v[:, 0], w.a[:, 0]
-        jerk = (a1 - a_prev) / DT
-        changed = lead != self.lead_prev
-        self.last_change = np.where(changed, t, self.last_change)
-        self.lead_prev = lead
-        gs, q = self._q(v1, v0, gap, has)
-        in_band = has & (gs > 0) & (q > 0) & (q < cfg.band_width * gs)
-        too_fast = v0 > self.set_speed + cfg.steady_dv
-        followable = has & (v0 > cfg.moving_speed) & ~too_fast
-        settled = t - self.last_change >= cfg.transient
-        following = (followable & settled & (v1 > cfg.moving_speed) & (np.abs(v0 - v1) <= cfg.steady_dv)
-                     & (gs > 0))
-        # nothing to follow: none in view, or one faster than the set speed -- and none followable
-        # beyond the sensor either (hanging back out of range earns no speed reward)
-        free = (~(has & (gap <= cfg.sensor_range)) | (has & too_fast)) & ~followable
-        with np.errstate(divide="ignore", invalid="ignore"):
-            u = np.where(has & (gs > 0), np.clip(q / (cfg.band_width * np.where(gs > 0, gs, 1.0)), 0.0, 1.0), np.nan)
-        neg = has & (q < 0)
-        self.neg_since = np.where(neg, np.where(np.isnan(self.neg_since), t, self.neg_since), np.nan)
-        grace = cfg.response_time if cfg.response_time is not None else self.tau1
-        responding = (a1 <= -cfg.response_decel) | (v1 <= cfg.stop_speed)
-        collision = has & (gap <= 0.0)
-        violation = (neg & (t - self.neg_since > grace) & ~responding) | collision
-        ind = StepIndicators(v=v1, a=a1, jerk=jerk, set_speed=self.set_speed, has_lead=has, gap=gap, gap_safe=gs, q=q,
-                             in_band=in_band, following=following, free=free, u=u, violation=violation,
-                             collision=collision, a_comfort=cfg.a_x_comfort, followable=followable, v_lead=v0,
-                             tau1=self.tau1)
+        grace = np.full(self.n, cfg.response_time) if cfg.response_time is not None else self.tau1
+        fl = np.empty((K.N_FLOAT, self.n))
+        bo = np.empty((K.N_BOOL, self.n), dtype=bool)
+        nb = w.neighbours
+        K.criteria(t, w.v, w.a, nb.lead, nb.gap, a_prev, DT, self.set_speed, self.tau1, grace, self._cfg,
+                   self.lead_prev, self.last_change, self.neg_since, fl, bo)
+        q, gs, collision, violation = fl[K.F_Q], fl[K.F_GS], bo[K.B_COLLISION], bo[K.B_VIOLATION]
+        ind = StepIndicators(v=fl[K.F_V], a=fl[K.F_A], jerk=fl[K.F_JERK], set_speed=self.set_speed,
+                             has_lead=bo[K.B_HAS], gap=fl[K.F_GAP], gap_safe=gs, q=q, in_band=bo[K.B_IN_BAND],
+                             following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=violation,
+                             collision=collision, a_comfort=cfg.a_x_comfort, followable=bo[K.B_FOLLOWABLE],
+                             v_lead=fl[K.F_VLEAD], tau1=self.tau1)
         reward, terms = self.reward_fn(ind)
         reward = np.asarray(reward, dtype=float)
         if active is None:
             active = ~self.done
         rows = np.flatnonzero(active)
-        self._record(rows, state)
+        self._record(rows)
         self.episode_return[rows] += reward[rows]
         terminated = collision | (violation & self.config.terminate_on_violation)
         truncated = (w.k >= self.steps) & ~terminated
         fallbacks = sum(slot.fallbacks for slot in self.slots)
         modes = np.stack([slot.info.get("mode", np.full(self.n, -1)) for slot in self.slots], axis=1)
-        info = {"t": t.copy(), "q": q, "g": q, "gap_safe": gs, "a_applied": a1.copy(), "violation": violation,
+        info = {"t": t.copy(), "q": q, "g": q, "gap_safe": gs, "a_applied": fl[K.F_A], "violation": violation,
                 "modes": modes, "fallbacks": fallbacks, "rewards": terms}
         ended = rows[(terminated | truncated)[rows]]
         info["final"] = {int(r): self._final(int(r)) for r in ended}

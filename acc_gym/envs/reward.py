@@ -87,8 +87,35 @@ class CriteriaReward:
                 raise ValueError(f"CriteriaReward.{f.name} must be a number >= 0, got {value!r}")
         if self.jerk_scale <= 0:
             raise ValueError(f"CriteriaReward.jerk_scale must be > 0, got {self.jerk_scale!r}")
+        object.__setattr__(self, "_w", np.array([self.band, self.efficiency, self.speed, self.comfort, self.jerk,
+                                                 self.safety, self.collision, self.lag, self.jerk_scale], dtype=float))
 
     def __call__(self, s: StepIndicators) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """``(reward, terms)`` for one step of ``n`` scenes, in one compiled pass
+        (:func:`acc_gym.envs._kernel.criteria_reward`; the numpy formulation is :meth:`reference`)."""
+        if s.followable is None or s.v_lead is None or s.tau1 is None:
+            return self.reference(s)
+        from acc_gym.envs import _kernel as K
+
+        n = np.shape(s.v)[0]
+
+        def f(x):
+            x = np.asarray(x, dtype=float)
+            return x if x.shape == (n,) else np.broadcast_to(x, (n,))
+
+        def b(x):
+            x = np.asarray(x, dtype=bool)
+            return x if x.shape == (n,) else np.broadcast_to(x, (n,))
+
+        terms = np.empty((len(K.TERMS), n))
+        reward = np.empty(n)
+        K.criteria_reward(f(s.v), f(s.a), f(s.jerk), f(s.gap), f(s.u), f(s.v_lead), f(s.set_speed), f(s.tau1),
+                          b(s.following), b(s.in_band), b(s.free), b(s.violation), b(s.collision), b(s.followable),
+                          float(s.a_comfort), self._w, terms, reward)
+        return reward, dict(zip(K.TERMS, terms))
+
+    def reference(self, s: StepIndicators) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """The same reward written with numpy (the definition the compiled one is tested against)."""
         speed_err = np.minimum(np.abs(s.v - s.set_speed) / (0.2 * s.set_speed), 1.0)
         terms = {
             "band": self.band * (s.following & s.in_band),

@@ -67,6 +67,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import threading
 
 import numpy as np
 
@@ -192,15 +193,37 @@ def _ahead(x_follower: float, v_follower: float, v_leader: float, gap: float, t_
     return x_follower + entry_gap(gap, v_follower, v_leader) + LENGTH - (v_leader - v_follower) * t_entry
 
 
+_PROBES = threading.local()  # one probe world per thread and step, reused by every pre-simulation
+
+
+def _probe_world(dt: float):
+    """A one-scene world with replaceable surrounding drivers (the environments' slots), kept
+    for reuse: building fresh MPC drivers for every pre-simulation cost more than the run."""
+    from acc_gym.drivers.slots import SlotDrivers  # late: the drivers import the scenarios' registry
+    from acc_gym.simulation.single_lane import SingleLaneWorld
+
+    worlds = _PROBES.__dict__.setdefault("worlds", {})
+    if dt not in worlds:
+        slots = [SlotDrivers(1, dt), SlotDrivers(1, dt)]
+        worlds[dt] = (SingleLaneWorld(np.array([[-1.0e6, -5.0e5, 0.0]]), np.zeros((1, 3)), [None, *slots], dt=dt),
+                      slots)
+    return worlds[dt]
+
+
 def _presimulate_pov(vehicles: list, t_entry: float, dt: float) -> tuple[float, float]:
     """The POV's position and speed at ``t_entry`` [s] without the ego (which, in its own lane,
     cannot influence anyone before it enters theirs)."""
-    from acc_gym.scenarios.world import make_world  # late: the world module builds drivers
+    from acc_gym.scenarios.world import scene_arrays  # late: the world module builds drivers
 
     far = min(v.x0 for v in vehicles[1:]) - 1.0e5
     probe = Scenario(id="probe", seed=0, params={}, duration=t_entry + dt, set_speed=1.0, time_gap=1.0, road=ROAD,
                      dt=dt, vehicles=(VehicleSpec("SV", far, 0.0, MERGE_LANE, None, None, LENGTH), *vehicles[1:]))
-    world = make_world([probe])
+    arr = scene_arrays([probe], ROAD)
+    world, slots = _probe_world(dt)
+    world.reset_rows([0], arr.x0, arr.v0, present=arr.present, lateral=arr.lateral, lengths=arr.length,
+                     width=arr.width)
+    for s, slot in enumerate(slots, start=1):
+        slot.assign(0, arr.drivers[s][0])
     steps = int(math.ceil(t_entry / dt))
     xs, vs = [world.x[0, 1]], [world.v[0, 1]]
     for _ in range(steps):

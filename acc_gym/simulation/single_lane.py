@@ -37,7 +37,8 @@ import numpy as np
 
 from acc_gym._validation import check_finite, check_nonnegative, check_positive
 from acc_gym.drivers.base import Observation
-from acc_gym.vehicle import VehicleParams, applied_acceleration, integrate
+from acc_gym.simulation import _world_kernel as _K
+from acc_gym.vehicle import VEHICLE_COLUMNS, VehicleParams
 
 DEFAULT_SENSOR_RANGE = 200.0  # [m] an ACC radar's range (paper 004: "about 200 m")
 VEHICLE_WIDTH = 1.8  # [m]
@@ -186,6 +187,9 @@ class SingleLaneWorld:
         check_positive("width", self.width)
         self.vehicle = vehicle if vehicle is not None else VehicleParams()
         self.lengths = _as_bs(self.vehicle.length, B, S, "vehicle.length")
+        # the vehicle parameters per vehicle for the compiled step, (B, S, 10) in VEHICLE_COLUMNS order
+        self._vp = np.ascontiguousarray(np.stack(
+            [np.broadcast_to(np.asarray(getattr(self.vehicle, c), float), (B, S)) for c in VEHICLE_COLUMNS], axis=-1))
         self.dt = float(dt)
         self.sensor_range = float(sensor_range)
         self.reset()
@@ -220,18 +224,26 @@ class SingleLaneWorld:
         for model in self.drivers:
             if model is not None and hasattr(model, "reset"):
                 model.reset()
-        self._update_lateral()
-        self.neighbours = self._neighbours()
+        self._refresh(mark=False)
 
     @property
     def t(self) -> np.ndarray:
         """Each scene's time [s], ``(B,)``."""
         return self.k * self.dt
 
-    def _update_lateral(self) -> None:
-        t = self.t[:, None]
-        self.y = self.lateral.position(t)
-        self.a_y = self.lateral.acceleration(t)
+    def _refresh(self, mark: bool) -> None:
+        """Lateral positions, neighbours (and, with ``mark``, collision flags) for the current
+        positions, in one compiled pass (:func:`acc_gym.simulation._world_kernel.refresh`;
+        the numpy reference is :meth:`_neighbours` with :class:`LateralPlan`)."""
+        B, S = self.B, self.S
+        self.y, self.a_y = np.empty((B, S)), np.empty((B, S))
+        lead, lead2 = np.empty((B, S), dtype=np.int64), np.empty((B, S), dtype=np.int64)
+        gap, gap2 = np.empty((B, S)), np.empty((B, S))
+        lat = self.lateral
+        _K.refresh(self.t, lat.y0, lat.y1, lat.t_start, lat.duration, self.x, self.lengths, self.present, self.width,
+                   float(self.road.lane_width), self.y, self.a_y, lead, gap, lead2, gap2, self.collided, mark)
+        self.neighbours = Neighbours(lead=lead, gap=gap, lead2=lead2, gap2=gap2)
+        self._obs = None  # observations of this state, made on first use
 
     def reset_rows(self, rows, x0, v0, *, present=None, lateral: LateralPlan | None = None, lengths=None,
                    width=None, a0=None) -> None:
@@ -258,11 +270,12 @@ class SingleLaneWorld:
         self.a[rows] = np.where(self.present[rows], self.a0[rows], 0.0)
         self.a_des[rows] = np.nan
         self.collided[rows] = False
-        self._update_lateral()
-        self.neighbours = self._neighbours()
+        self._refresh(mark=False)
         self._check_apart(rows)
 
     def _neighbours(self) -> Neighbours:
+        """Who is ahead, written with numpy over ``(B, S, S)`` (the reference for the compiled
+        :func:`~acc_gym.simulation._world_kernel.refresh` the world uses)."""
         x, y = self.x, self.y
         gap = (x - self.lengths)[:, None, :] - x[:, :, None]  # [b, i, j]: i's front to j's rear
         ahead = x[:, None, :] > x[:, :, None]
@@ -282,18 +295,13 @@ class SingleLaneWorld:
 
     def observe(self, slot: int) -> Observation:
         """What the vehicles of ``slot`` (one per scene) see now (sensor range applied)."""
-        nb = self.neighbours
-        rows = np.arange(self.B)
-
-        def pick(arr, idx):
-            return np.where(idx >= 0, arr[rows, np.maximum(idx, 0)], 0.0)
-
-        lead, lead2 = nb.lead[:, slot], nb.lead2[:, slot]
-        gap = np.where(nb.gap[:, slot] <= self.sensor_range, nb.gap[:, slot], np.inf)
-        gap2 = np.where(np.isfinite(gap) & (nb.gap2[:, slot] <= self.sensor_range), nb.gap2[:, slot], np.inf)
-        return Observation(v=self.v[:, slot].copy(), a=self.a[:, slot].copy(), gap=gap,
-                           v_lead=pick(self.v, lead), a_lead=pick(self.a, lead),
-                           gap2=gap2, v_lead2=pick(self.v, lead2), a_lead2=pick(self.a, lead2))
+        if self._obs is None:  # every slot at once, on first use after a change of state
+            nb = self.neighbours
+            self._obs = np.empty((self.S, len(_K.OBS_FIELDS), self.B))
+            _K.observe_all(self.v, self.a, nb.lead, nb.gap, nb.lead2, nb.gap2, self.sensor_range, self._obs)
+            self._obs.setflags(write=False)  # shared by the slots' observations of this state
+        o = self._obs[slot]
+        return Observation(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7])
 
     # ------------------------------------------------------------------ dynamics
     def step(self, ego_a_des=None) -> None:
@@ -312,15 +320,13 @@ class SingleLaneWorld:
                 a_des[:, s] = model.act(self.observe(s))
             elif s == 0:
                 raise ValueError("the ego has no model: pass ego_a_des to step()")
-        a_des = np.where(self.present, a_des, 0.0)
-        a = applied_acceleration(a_des, self.v, self.vehicle)
-        a = np.where(self.present, a, 0.0)
-        self.x, self.v = integrate(self.x, self.v, a, self.dt)
-        self.a, self.a_des = a, a_des
+        shape = (self.B, self.S)
+        x, v, a, applied_des = np.empty(shape), np.empty(shape), np.empty(shape), np.empty(shape)
+        # Eq. (3) and exact integration (acc_gym.vehicle.applied_acceleration / integrate, compiled)
+        _K.advance(a_des, self.present, self.x, self.v, self._vp, self.dt, x, v, a, applied_des)
+        self.x, self.v, self.a, self.a_des = x, v, a, applied_des
         self.k += 1
-        self._update_lateral()
-        self.neighbours = self._neighbours()
-        self.collided |= self.neighbours.gap <= 0.0
+        self._refresh(mark=True)
 
     def driver_info(self, slot: int) -> dict:
         model = self.drivers[slot]

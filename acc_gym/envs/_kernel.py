@@ -1,0 +1,142 @@
+"""Compiled per-step criteria, reward and episode record of the environment core.
+
+:meth:`acc_gym.envs.core.EpisodeBatch.step` evaluates, for every scene, the same
+per-sample definitions the 100-point score uses (:mod:`acc_gym.evaluation.scoring`):
+Gapsafe and Q, the band, car-following and free samples, ``u_t``, the proper-response
+safety check and a collision. On a few scenes that is dozens of tiny numpy operations
+per step; :func:`criteria` does them in one pass, :func:`criteria_reward` weighs them as
+the default :class:`~acc_gym.envs.reward.CriteriaReward`, and :func:`record` writes the
+step into the episode records. ``tests/envs/test_env_kernel.py`` checks them against the
+numpy formulations kept in :mod:`acc_gym.envs.reward` and the scoring module.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+# rows of criteria()'s float output
+F_V, F_A, F_JERK, F_GAP, F_GS, F_Q, F_U, F_VLEAD, F_ALEAD = range(9)
+N_FLOAT = 9
+# rows of its boolean output
+B_HAS, B_IN_BAND, B_FOLLOWING, B_FREE, B_VIOLATION, B_COLLISION, B_FOLLOWABLE = range(7)
+N_BOOL = 7
+# the reward terms of criteria_reward(), in info["rewards"] order
+TERMS = ("band", "efficiency", "speed", "comfort", "jerk", "safety", "collision", "lag")
+# the episode record's rows (EgoTrace columns)
+RECORD = ("t", "v", "a", "gap", "v_lead", "a_lead", "lead_id", "a_y", "d2", "d3")
+
+
+@numba.njit(cache=True, error_model="numpy")
+def criteria(t, v, a, lead_all, gap_all, a_prev, dt, set_speed, tau1, grace, cfg,
+             lead_prev, last_change, neg_since, fl, bo):  # pragma: no cover - compiled
+    """One step's criteria of the ego (slot 0) of every scene.
+
+    ``v``, ``a`` ``(n, S)`` and ``lead_all``, ``gap_all`` the world's neighbours; ``cfg`` the
+    scoring constants ``(b0, b1, band_width, steady_dv, moving_speed, transient,
+    sensor_range, response_decel, stop_speed)``. Updates ``lead_prev``, ``last_change``
+    and ``neg_since`` in place; writes ``fl`` (:data:`N_FLOAT`, n) and ``bo`` (:data:`N_BOOL`, n).
+    """
+    b0, b1, bw, steady_dv, moving, transient, sensor, resp_decel, stop_speed = (
+        cfg[0], cfg[1], cfg[2], cfg[3], cfg[4], cfg[5], cfg[6], cfg[7], cfg[8])
+    n = v.shape[0]
+    for i in range(n):
+        ti = t[i]
+        v1 = v[i, 0]
+        a1 = a[i, 0]
+        lead = lead_all[i, 0]
+        gap = gap_all[i, 0]
+        has = lead >= 0
+        v0 = v[i, lead] if has else 0.0
+        fl[F_VLEAD, i] = v0
+        fl[F_ALEAD, i] = a[i, lead] if has else 0.0
+        fl[F_V, i] = v1
+        fl[F_A, i] = a1
+        fl[F_JERK, i] = (a1 - a_prev[i]) / dt
+        fl[F_GAP, i] = gap
+        if lead != lead_prev[i]:
+            last_change[i] = ti
+        lead_prev[i] = lead
+        gs = v1 * tau1[i] + v1 ** 2 / (2.0 * b1) - v0 ** 2 / (2.0 * b0)
+        q = gap - gs if has else np.inf
+        fl[F_GS, i] = gs
+        fl[F_Q, i] = q
+        bo[B_HAS, i] = has
+        bo[B_IN_BAND, i] = has and gs > 0 and q > 0 and q < bw * gs
+        too_fast = v0 > set_speed[i] + steady_dv
+        followable = has and v0 > moving and not too_fast
+        bo[B_FOLLOWABLE, i] = followable
+        settled = ti - last_change[i] >= transient
+        bo[B_FOLLOWING, i] = (followable and settled and v1 > moving and abs(v0 - v1) <= steady_dv and gs > 0)
+        # nothing to follow: none in view, or one faster than the set speed -- and none followable
+        bo[B_FREE, i] = ((not (has and gap <= sensor)) or (has and too_fast)) and not followable
+        if has and gs > 0:
+            fl[F_U, i] = min(max(q / (bw * gs), 0.0), 1.0)
+        else:
+            fl[F_U, i] = np.nan
+        neg = has and q < 0
+        if neg:
+            if math.isnan(neg_since[i]):
+                neg_since[i] = ti
+        else:
+            neg_since[i] = np.nan
+        responding = a1 <= -resp_decel or v1 <= stop_speed
+        collision = has and gap <= 0.0
+        bo[B_COLLISION, i] = collision
+        bo[B_VIOLATION, i] = (neg and ti - neg_since[i] > grace[i] and not responding) or collision
+
+
+@numba.njit(cache=True, error_model="numpy")
+def criteria_reward(v, a, jerk, gap, u, v_lead, set_speed, tau1, following, in_band, free, violation, collision,
+                    followable, a_comfort, w, terms, reward):  # pragma: no cover - compiled
+    """The default reward's terms (:data:`TERMS` rows of ``terms``) and their sum ``reward``.
+
+    ``w``: weights ``(band, efficiency, speed, comfort, jerk, safety, collision, lag,
+    jerk_scale)``; the formulas of :meth:`acc_gym.envs.reward.CriteriaReward.reference`.
+    """
+    n = v.shape[0]
+    for i in range(n):
+        vs = set_speed[i]
+        speed_err = min(abs(v[i] - vs) / (0.2 * vs), 1.0)
+        ui = u[i]
+        terms[0, i] = w[0] * (1.0 if (following[i] and in_band[i]) else 0.0)
+        terms[1, i] = w[1] * ((1.0 - (1.0 if math.isnan(ui) else ui)) if following[i] else 0.0)
+        terms[2, i] = w[2] * ((1.0 - speed_err) if free[i] else 0.0)
+        terms[3, i] = -w[3] * (a[i] / a_comfort) ** 2
+        terms[4, i] = -w[4] * (jerk[i] / w[8]) ** 2
+        terms[5, i] = -w[5] * (1.0 if violation[i] else 0.0)
+        terms[6, i] = -w[6] * (1.0 if collision[i] else 0.0)
+        if followable[i]:
+            far = 1.2 * tau1[i] * v_lead[i] + 5.0  # [m]
+            terms[7, i] = -w[7] * min(max((gap[i] - far) / far, 0.0), 1.0)
+        else:
+            terms[7, i] = -w[7] * 0.0
+        total = 0.0
+        for k in range(terms.shape[0]):
+            total += terms[k, i]
+        reward[i] = total
+
+
+@numba.njit(cache=True, error_model="numpy")
+def record(rows, k, t, v, a, lead_all, gap_all, a_y, y, width0, lane_width, n_lanes, rec):  # pragma: no cover
+    """Write the current state of scenes ``rows`` at their step ``k[row]`` into ``rec``
+    (:data:`RECORD` rows, scenes, steps)."""
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        kk = k[i]
+        lead = lead_all[i, 0]
+        has = lead >= 0
+        half = 0.5 * width0[i]
+        yi = y[i, 0]
+        rec[0, i, kk] = t[i]
+        rec[1, i, kk] = v[i, 0]
+        rec[2, i, kk] = a[i, 0]
+        rec[3, i, kk] = gap_all[i, 0]
+        rec[4, i, kk] = v[i, lead] if has else 0.0
+        rec[5, i, kk] = a[i, lead] if has else 0.0
+        rec[6, i, kk] = float(lead)
+        rec[7, i, kk] = a_y[i, 0]
+        rec[8, i, kk] = yi + 0.5 * lane_width[i] - half
+        rec[9, i, kk] = (n_lanes[i] - 0.5) * lane_width[i] - yi - half

@@ -1,0 +1,132 @@
+"""Compiled inner loops of :class:`~acc_gym.simulation.single_lane.SingleLaneWorld`.
+
+The world's state is a handful of ``(B, S)`` arrays; one step touches each of them a few
+times. Written as numpy expressions that is some hundred small array operations per step,
+whose fixed cost (about a microsecond each) dwarfs the arithmetic for the few vehicles of
+a scene. These kernels do the same arithmetic in one pass per phase:
+
+* :func:`advance`: Eq. (3) of the vehicle model (``clip(a_des, a_L(v), a_U(v))``, no
+  braking at standstill) and the exact zero-order-hold integration with stopping inside
+  the step -- the same formulas as :func:`acc_gym.vehicle.applied_acceleration` and
+  :func:`acc_gym.vehicle.integrate`, compiled from the same physics functions;
+* :func:`refresh`: the scripted lateral positions and accelerations (half-cosine moves),
+  then *who is ahead* by lane-corridor overlap (the nearest and second-nearest vehicle
+  whose front bumper is ahead and whose contour overlaps the corridor; ties go to the
+  lower slot, as a stable sort would), and the sticky collision flags;
+* :func:`observe_all`: every slot's :class:`~acc_gym.drivers.base.Observation` fields at
+  once (sensor range applied), as ``(S, 8, B)`` so each field of a slot is contiguous.
+
+The numpy formulations stay in :mod:`acc_gym.simulation.single_lane` and
+:mod:`acc_gym.vehicle` as the reference; ``tests/simulation/test_world_kernel.py``
+checks the kernels against them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from acc_gym.vehicle import accel_lower_core, accel_upper_core
+
+_upper = numba.njit(cache=True, error_model="numpy")(accel_upper_core)
+_lower = numba.njit(cache=True, error_model="numpy")(accel_lower_core)
+
+# rows of observe_all's output, in Observation's field order
+OBS_FIELDS = ("v", "a", "gap", "v_lead", "a_lead", "gap2", "v_lead2", "a_lead2")
+
+
+@numba.njit(cache=True, error_model="numpy")
+def advance(a_des, present, x, v, vp, dt, x_out, v_out, a_out, a_des_out):  # pragma: no cover - compiled
+    """Apply Eq. (3) and integrate one step; absent vehicles ask for and get 0."""
+    B, S = x.shape
+    for b in range(B):
+        for s in range(S):
+            if not present[b, s]:
+                a_des_out[b, s] = 0.0
+                x_out[b, s] = x[b, s]
+                v_out[b, s] = v[b, s]
+                a_out[b, s] = 0.0
+                continue
+            ad = a_des[b, s]
+            a_des_out[b, s] = ad
+            vv = v[b, s]
+            p = vp[b, s]
+            lo = _lower(vv, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[9])
+            hi = _upper(vv, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8])
+            a = min(max(ad, lo), hi)  # np.clip(a_des, lo, hi)
+            if vv <= 0.0 and a < 0.0:
+                a = 0.0
+            v_end = vv + a * dt
+            if v_end < 0.0:
+                x_out[b, s] = x[b, s] + vv * vv / (-2.0 * a)
+                v_out[b, s] = 0.0
+            else:
+                x_out[b, s] = x[b, s] + (vv * dt + 0.5 * a * dt * dt)
+                v_out[b, s] = v_end
+            a_out[b, s] = a
+
+
+@numba.njit(cache=True, error_model="numpy")
+def refresh(t, y0, y1, t_start, duration, x, lengths, present, width, lane_width,
+            y, a_y, lead, gap, lead2, gap2, collided, mark):  # pragma: no cover - compiled
+    """Lateral positions at each scene's time ``t``, then neighbours; with ``mark``, set the
+    sticky collision flag of every vehicle whose gap is <= 0 (after a step, not at a start)."""
+    B, S = x.shape
+    for b in range(B):
+        for s in range(S):
+            d = duration[b, s]
+            ph = (t[b] - t_start[b, s]) / d
+            ph = min(max(ph, 0.0), 1.0)
+            dy = y1[b, s] - y0[b, s]
+            c = math.cos(math.pi * ph)
+            y[b, s] = y0[b, s] + dy * 0.5 * (1.0 - c)
+            if ph > 0.0 and ph < 1.0:
+                a_y[b, s] = dy * 0.5 * (math.pi / d) ** 2 * c
+            else:
+                a_y[b, s] = 0.0
+        for i in range(S):
+            g1 = np.inf
+            j1 = -1
+            g2 = np.inf
+            j2 = -1
+            if present[b, i]:
+                for j in range(S):
+                    if not present[b, j] or not (x[b, j] > x[b, i]):
+                        continue
+                    if not (abs(y[b, j] - y[b, i]) < 0.5 * (lane_width + width[b, j])):
+                        continue
+                    g = (x[b, j] - lengths[b, j]) - x[b, i]
+                    if g < g1:
+                        g2, j2 = g1, j1
+                        g1, j1 = g, j
+                    elif g < g2:
+                        g2, j2 = g, j
+            lead[b, i] = j1
+            gap[b, i] = g1
+            lead2[b, i] = j2
+            gap2[b, i] = g2
+            if mark and g1 <= 0.0:
+                collided[b, i] = True
+
+
+@numba.njit(cache=True, error_model="numpy")
+def observe_all(v, a, lead, gap, lead2, gap2, sensor_range, out):  # pragma: no cover - compiled
+    """``out[s, f, b]``: field ``f`` (:data:`OBS_FIELDS`) of slot ``s``'s vehicle in scene ``b``."""
+    B, S = v.shape
+    for s in range(S):
+        for b in range(B):
+            out[s, 0, b] = v[b, s]
+            out[s, 1, b] = a[b, s]
+            g = gap[b, s]
+            seen = g <= sensor_range
+            out[s, 2, b] = g if seen else np.inf
+            j = lead[b, s]
+            out[s, 3, b] = v[b, j] if j >= 0 else 0.0
+            out[s, 4, b] = a[b, j] if j >= 0 else 0.0
+            g2 = gap2[b, s]
+            out[s, 5, b] = g2 if (seen and g2 <= sensor_range) else np.inf
+            j2 = lead2[b, s]
+            out[s, 6, b] = v[b, j2] if j2 >= 0 else 0.0
+            out[s, 7, b] = a[b, j2] if j2 >= 0 else 0.0
