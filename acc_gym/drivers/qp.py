@@ -231,23 +231,41 @@ def _spd_inverse(a):  # pragma: no cover - compiled
             for k in range(j):
                 s -= L[i, k] * L[j, k]
             L[i, j] = s / d
-    M = np.zeros((n, n))  # L^-1, lower triangular
+    Mt = np.zeros((n, n))  # (L^-1)', upper triangular, so that every inner loop runs along rows
     for j in range(n):
-        M[j, j] = 1.0 / L[j, j]
+        Mt[j, j] = 1.0 / L[j, j]
         for i in range(j + 1, n):
             s = 0.0
             for k in range(j, i):
-                s += L[i, k] * M[k, j]
-            M[i, j] = -s / L[i, i]
-    out = np.empty((n, n))  # a^-1 = M' M
+                s += L[i, k] * Mt[j, k]
+            Mt[j, i] = -s / L[i, i]
+    out = np.empty((n, n))  # a^-1 = (L^-1)' L^-1
     for i in range(n):
         for j in range(i + 1):
             s = 0.0
             for k in range(i, n):
-                s += M[k, i] * M[k, j]
+                s += Mt[i, k] * Mt[j, k]
             out[i, j] = s
             out[j, i] = s
     return True, out
+
+
+@numba.njit(cache=True)
+def _assemble_hessian(pp, pv_sym, vv, dd, x_n, v_n, q1, q2, r1, c_tg, r_jerk, p00, p01, p11):  # pragma: no cover
+    """``2 (M'WM + r1 I + r_jerk D'D)``, symmetrised, from the horizon's products (see CondensedQP)."""
+    n = pp.shape[0]
+    h = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            m = (q1 * (pp[i, j] + c_tg * pv_sym[i, j] + c_tg * c_tg * vv[i, j]) + q2 * vv[i, j]
+                 + p00 * (x_n[i] * x_n[j]) + p11 * (v_n[i] * v_n[j]) + p01 * (x_n[i] * v_n[j] + v_n[i] * x_n[j]))
+            h[i, j] = 2.0 * (m + (r1 if i == j else 0.0) + r_jerk * dd[i, j])
+    for i in range(n):
+        for j in range(i):
+            s = 0.5 * (h[i, j] + h[j, i])
+            h[i, j] = s
+            h[j, i] = s
+    return h
 
 
 @numba.njit(cache=True)
@@ -305,10 +323,7 @@ class CondensedQP:
         # Hessian is M'WM, expanded in c over products of Tp and Tv cached per horizon:
         # only scaled sums of N x N matrices per driver (resets build two QPs per driver).
         x_n = b.p_n + c_tg * b.v_n  # last row of Tp + c Tv
-        mwm = (q1 * (b.pp + c_tg * b.pv_sym + c_tg * c_tg * b.vv) + q2 * b.vv
-               + p00 * np.outer(x_n, x_n) + p11 * b.vv_n + p01 * (np.outer(x_n, b.v_n) + np.outer(b.v_n, x_n)))
-        huu = 2.0 * (mwm + r1 * b.eye + r_jerk * b.dd)
-        huu = 0.5 * (huu + huu.T)
+        huu = _assemble_hessian(b.pp, b.pv_sym, b.vv, b.dd, x_n, b.v_n, q1, q2, r1, c_tg, r_jerk, p00, p01, p11)
         # linear terms: M'W s_theta (free response of the errors to theta) and M'W [Tp; Tv]
         # (the target's predicted accelerations), both with the sign of -M
         ws_x = np.zeros((n, 2))  # W s_theta, e_x rows

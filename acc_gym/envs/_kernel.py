@@ -140,3 +140,36 @@ def record(rows, k, t, v, a, lead_all, gap_all, a_y, y, width0, lane_width, n_la
         rec[7, i, kk] = a_y[i, 0]
         rec[8, i, kk] = yi + 0.5 * lane_width[i] - half
         rec[9, i, kk] = (n_lanes[i] - 0.5) * lane_width[i] - yi - half
+
+
+@numba.njit(cache=True, error_model="numpy")
+def observe(o, set_speed, time_gap, sensor_range, v2v, low, high, out):  # pragma: no cover - compiled
+    """The environment observations (the table in :class:`acc_gym.envs.acc_env.ACCEnv`), clipped
+    to ``[low, high]`` and written into ``out`` ``(n, 7)`` or ``(n, 11)`` (any float dtype).
+
+    ``o`` ``(8, n)``: the ego's :class:`~acc_gym.drivers.base.Observation` fields in
+    :data:`acc_gym.simulation._world_kernel.OBS_FIELDS` order (gap ``inf``: nothing seen).
+    """
+    n = o.shape[1]
+    m = out.shape[1]
+    row = np.empty(m)
+    for i in range(n):
+        v = o[0, i]
+        gap = o[2, i]
+        seen = math.isfinite(gap)
+        row[0] = v
+        row[1] = o[1, i]
+        row[2] = min(max(gap, 0.0), sensor_range) if seen else sensor_range
+        row[3] = o[3, i] - v if seen else 0.0
+        row[4] = 1.0 if seen else 0.0
+        row[5] = set_speed[i]
+        row[6] = time_gap[i]
+        if v2v:
+            gap2 = o[5, i]
+            seen2 = math.isfinite(gap2)
+            row[7] = o[4, i] if seen else 0.0
+            row[8] = min(max(gap2, 0.0), sensor_range) if seen2 else sensor_range
+            row[9] = o[6, i] - v if seen2 else 0.0
+            row[10] = 1.0 if seen2 else 0.0
+        for j in range(m):
+            out[i, j] = min(max(row[j], low[j]), high[j])

@@ -37,6 +37,10 @@ def action_to_accel(action: np.ndarray, config: EnvConfig) -> np.ndarray:
 
 def check_actions(actions, shape: tuple) -> np.ndarray:
     """``actions`` as a float array of ``shape``, or a ``ValueError`` naming what is wrong."""
+    if type(actions) is np.ndarray and actions.shape == shape and actions.dtype.kind == "f":  # fast path
+        a = actions.astype(float, copy=False)
+        if np.isfinite(a).all():
+            return a
     if actions is None:
         raise ValueError(f"action must be numeric with shape {shape}, got None")
     try:
@@ -179,8 +183,9 @@ class ACCEnv(gym.Env):
         return self.core.scenarios[0]
 
     def _obs(self) -> np.ndarray:
-        o = self.core.observe()[0].astype(np.float32)
-        return np.clip(o, self.observation_space.low, self.observation_space.high)
+        if not hasattr(self, "_bounds"):
+            self._bounds = (self.observation_space.low.astype(float), self.observation_space.high.astype(float))
+        return self.core.observe(*self._bounds, dtype=np.float32)[0]
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)

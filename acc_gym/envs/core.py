@@ -135,19 +135,16 @@ class EpisodeBatch:
                  np.ascontiguousarray(w.width[:, 0]), self.lane_width, self.n_lanes, self._rec_arr)
 
     # ------------------------------------------------------------------ observation
-    def observe(self) -> np.ndarray:
-        """Observations ``(n, 7)`` or ``(n, 11)`` with V2V (see the environment docstring)."""
-        w = self.world
-        obs = w.observe(0)
-        rng = self.config.sensor_range
-        seen = np.isfinite(obs.gap)
-        cols = [w.v[:, 0], w.a[:, 0], np.where(seen, np.clip(obs.gap, 0.0, rng), rng),
-                np.where(seen, obs.v_lead - obs.v, 0.0), seen.astype(float), self.set_speed, self.time_gap]
-        if self.config.v2v:
-            seen2 = np.isfinite(obs.gap2)
-            cols += [np.where(seen, obs.a_lead, 0.0), np.where(seen2, np.clip(obs.gap2, 0.0, rng), rng),
-                     np.where(seen2, obs.v_lead2 - obs.v, 0.0), seen2.astype(float)]
-        return np.stack(cols, axis=1)
+    def observe(self, low=None, high=None, dtype=np.float64) -> np.ndarray:
+        """Observations ``(n, 7)`` or ``(n, 11)`` with V2V (see the environment docstring),
+        clipped to ``[low, high]`` when given (the observation space's bounds), as ``dtype``."""
+        m = 11 if self.config.v2v else 7
+        low = np.full(m, -np.inf) if low is None else np.asarray(low, dtype=float)
+        high = np.full(m, np.inf) if high is None else np.asarray(high, dtype=float)
+        out = np.empty((self.n, m), dtype=dtype)
+        K.observe(self.world.observation_array(0), self.set_speed, self.time_gap, float(self.config.sensor_range), bool(self.config.v2v), low, high,
+                  out)
+        return out
 
     # ------------------------------------------------------------------ step
     def step(self, a_des: np.ndarray, active: np.ndarray | None = None):

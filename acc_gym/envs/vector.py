@@ -59,8 +59,10 @@ class ACCVectorEnv(VectorEnv):
         self._started = False
 
     def _obs(self) -> np.ndarray:
-        o = self.core.observe().astype(np.float32)
-        return np.clip(o, self.single_observation_space.low, self.single_observation_space.high)
+        if not hasattr(self, "_bounds"):
+            space = self.single_observation_space
+            self._bounds = (space.low.astype(float), space.high.astype(float))
+        return self.core.observe(*self._bounds, dtype=np.float32)
 
     def _reset_rows(self, rows, scenarios=None) -> dict:
         self.core.reset_rows(rows, [self._rngs[r] for r in rows], scenarios)

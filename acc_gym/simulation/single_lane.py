@@ -295,13 +295,18 @@ class SingleLaneWorld:
 
     def observe(self, slot: int) -> Observation:
         """What the vehicles of ``slot`` (one per scene) see now (sensor range applied)."""
+        o = self.observation_array(slot)
+        return Observation(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7])
+
+    def observation_array(self, slot: int) -> np.ndarray:
+        """What :meth:`observe` returns, as one read-only array ``(8, B)`` (rows
+        :data:`acc_gym.simulation._world_kernel.OBS_FIELDS`)."""
         if self._obs is None:  # every slot at once, on first use after a change of state
             nb = self.neighbours
             self._obs = np.empty((self.S, len(_K.OBS_FIELDS), self.B))
             _K.observe_all(self.v, self.a, nb.lead, nb.gap, nb.lead2, nb.gap2, self.sensor_range, self._obs)
             self._obs.setflags(write=False)  # shared by the slots' observations of this state
-        o = self._obs[slot]
-        return Observation(o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7])
+        return self._obs[slot]
 
     # ------------------------------------------------------------------ dynamics
     def step(self, ego_a_des=None) -> None:
