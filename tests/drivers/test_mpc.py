@@ -259,7 +259,7 @@ def test_parallel_kernel_matches_serial():
     params = sample_drivers(rng, n, rng.uniform(15, 30, n))
     obs = Observation.build(v=rng.uniform(0, 30, n), a=rng.uniform(-2, 1.5, n), gap=rng.uniform(3, 120, n),
                             v_lead=rng.uniform(0, 30, n), a_lead=rng.uniform(-3, 0.5, n))
-    par = MPCDriver(params)
+    par = MPCDriver(params, settings=MPCSettings(parallel=True))
     assert par._parallel
     u_par = par.act(obs)
     u_ser = np.array([MPCDriver(params.take(slice(i, i + 1))).act(obs.take(slice(i, i + 1)))[0] for i in range(n)])

@@ -5,6 +5,7 @@ import pytest
 from scipy.linalg import solve_discrete_are
 
 from acc_gym.drivers import IDM, IDMParams, MPCDriver, Observation, preset, sample_drivers
+from acc_gym.drivers.mpc import MPCSettings
 from acc_gym.drivers.qp import Horizon, riccati_terminal
 from acc_gym.drivers.scripted import ProfileDriver
 from acc_gym.drivers.slots import SlotDrivers
@@ -86,10 +87,11 @@ def test_a_large_batch_uses_the_parallel_kernel_and_gives_the_same_numbers():
     equal the driver stepped alone (what makes a large vector env equal single envs)."""
     rng = np.random.default_rng(0)
     p = sample_drivers(rng, 130, rng.uniform(10, 30, 130))
-    big = MPCDriver(p)
+    big = MPCDriver(p, settings=MPCSettings(parallel=None))  # auto: threads from 128 drivers
     rows = (0, 57, 129)
     alone = [MPCDriver(p.take([i])) for i in rows]
     assert big._parallel and not alone[0]._parallel
+    assert not MPCDriver(p)._parallel  # the default: no threads (see MPCSettings.parallel)
     for _ in range(40):
         v = rng.uniform(5, 30, 130)
         o = Observation.build(v=v, a=rng.uniform(-1, 1, 130), gap=rng.uniform(3, 80, 130),
