@@ -348,8 +348,8 @@ class CondensedQP:
         self.hessian = np.zeros((n + 1, n + 1))
         self.hessian[:n, :n] = huu
         self.hessian[n, n] = 2.0 * slack_quadratic
-        for arr in (self.f_theta, self.gain, self.hessian, self.hinv, self.hinv_sums):
-            arr.setflags(write=False)
+        for arr in (self.f_theta, self.gain, self.hessian, self.hinv, self.hinv_sums, self.terminal):
+            arr.setflags(write=False)  # shared: condensed_qp caches one instance per configuration
 
     @property
     def f_lead(self) -> np.ndarray:
