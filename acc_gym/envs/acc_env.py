@@ -31,7 +31,7 @@ def observation_space(config: EnvConfig) -> spaces.Box:
 
 def action_to_accel(action: np.ndarray, config: EnvConfig) -> np.ndarray:
     """Actions in [-1, 1] (clipped) to desired accelerations [m/s^2]: ``+1 -> accel_max``, ``-1 -> -decel_max``."""
-    a = np.clip(action, -1.0, 1.0)
+    a = np.minimum(np.maximum(action, -1.0), 1.0)  # np.clip, at a fraction of its call overhead
     return np.where(a >= 0, a * config.accel_max, a * config.decel_max)
 
 

@@ -181,7 +181,10 @@ class EpisodeBatch:
         terminated = collision | (violation & self.config.terminate_on_violation)
         truncated = (w.k >= self.steps) & ~terminated
         fallbacks = sum(slot.fallbacks for slot in self.slots)
-        modes = np.stack([slot.info.get("mode", np.full(self.n, -1)) for slot in self.slots], axis=1)
+        modes = np.full((self.n, len(self.slots)), -1, dtype=np.int64)
+        for j, slot in enumerate(self.slots):
+            if "mode" in slot.info:
+                modes[:, j] = slot.info["mode"]
         info = {"t": t.copy(), "q": q, "g": q, "gap_safe": gs, "a_applied": fl[K.F_A], "violation": violation,
                 "modes": modes, "fallbacks": fallbacks, "rewards": terms}
         ended = rows[(terminated | truncated)[rows]]

@@ -318,8 +318,11 @@ class SingleLaneWorld:
         a_des = np.zeros((self.B, self.S))
         for s, model in enumerate(self.drivers):
             if s == 0 and ego_a_des is not None:
-                ego = np.broadcast_to(np.asarray(ego_a_des, dtype=float), (self.B,))
-                check_finite("ego_a_des", ego)
+                ego = ego_a_des
+                if not (type(ego) is np.ndarray and ego.shape == (self.B,) and ego.dtype == np.float64):
+                    ego = np.broadcast_to(np.asarray(ego_a_des, dtype=float), (self.B,))
+                if not np.isfinite(ego).all():
+                    check_finite("ego_a_des", ego)  # raises, naming the value
                 a_des[:, 0] = ego
             elif model is not None:
                 a_des[:, s] = model.act(self.observe(s))
