@@ -10,7 +10,9 @@ actions and episodes ending and restarting as they come (resets included in the 
   environments, counting every sub-environment step.
 
 Each figure is the median of ``--repeats`` timed runs after a warm-up run (numba
-kernels compiled, caches warm); the spread is printed too.
+kernels compiled, caches warm); the spread is printed too. ``--parallel`` runs the vector
+env's MPC drivers on numba's thread pool (``MPCSettings(parallel=None)``; off by default,
+see :class:`acc_gym.drivers.mpc.MPCSettings`) and reports that figure as well.
 
     python benchmarks/bench_env.py            # table
     python benchmarks/bench_env.py --json     # one JSON object
@@ -26,6 +28,7 @@ import gymnasium as gym
 import numpy as np
 
 import acc_gym  # noqa: F401  (registers the ids)
+from acc_gym.drivers.mpc import MPCSettings
 from acc_gym.envs.config import SINGLELANE
 
 THREE_VEHICLES = tuple(i for i in SINGLELANE if i.startswith("singlelane/3/"))
@@ -44,9 +47,10 @@ def single_env_rate(steps: int, seed: int) -> float:
     return steps / (time.perf_counter() - t0)
 
 
-def vector_env_rate(num_envs: int, steps: int, seed: int) -> float:
+def vector_env_rate(num_envs: int, steps: int, seed: int, parallel: bool = False) -> float:
+    kwargs = {"mpc_settings": MPCSettings(parallel=None)} if parallel else {}
     envs = gym.make_vec("acc_gym/SingleLane-v0", num_envs=num_envs, vectorization_mode="vector_entry_point",
-                        scenarios=THREE_VEHICLES)
+                        scenarios=THREE_VEHICLES, **kwargs)
     rng = np.random.default_rng(seed)
     envs.reset(seed=seed)
     t0 = time.perf_counter()
@@ -61,6 +65,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--vector-steps", type=int, default=200, help="vector-env steps per timed run")
     parser.add_argument("--num-envs", type=int, default=256)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--parallel", action="store_true", help="also time the vector env with threaded MPC drivers")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     single_env_rate(300, 99)  # warm-up: compile and cache
@@ -75,6 +80,11 @@ def main(argv=None) -> dict:
         "num_envs": args.num_envs,
         "vector_over_single": float(np.median(vectors) / np.median(singles)),
     }
+    if args.parallel:
+        vector_env_rate(min(args.num_envs, 16), 20, 99, parallel=True)
+        par = [vector_env_rate(args.num_envs, args.vector_steps, r, parallel=True) for r in range(args.repeats)]
+        out["vector_env_parallel_steps_per_s"] = float(np.median(par))
+        out["vector_env_parallel_steps_per_s_runs"] = [round(x) for x in par]
     if args.json:
         print(json.dumps(out))
     else:
@@ -82,6 +92,9 @@ def main(argv=None) -> dict:
               f"(runs {out['env_steps_per_s_runs']}; target >= 10,000)")
         print(f"vector env, {args.num_envs} envs:            {out['vector_env_steps_per_s']:,.0f} steps/s "
               f"(runs {out['vector_env_steps_per_s_runs']}; target >= 100,000)")
+        if args.parallel:
+            print(f"vector env, threaded MPC drivers:    {out['vector_env_parallel_steps_per_s']:,.0f} steps/s "
+                  f"(runs {out['vector_env_parallel_steps_per_s_runs']})")
         print(f"vector / single: {out['vector_over_single']:.1f}x")
     return out
 
