@@ -138,7 +138,7 @@ class MPCDriverParams:
     jerk_emergency: float | np.ndarray = 50.0  # [m/s^3] bound on |du/dt| in emergencies
 
     def __post_init__(self) -> None:
-        if self._scalars_valid():
+        if self._scalars_valid() or self._arrays_valid():
             return
         for f in fields(self):
             value = getattr(self, f.name)
@@ -183,6 +183,34 @@ class MPCDriverParams:
                 and d["a_sail"] > d["a_min"] and d["q1"] >= 0 and d["q2"] > 0 and d["r1"] > 0 and d["r_jerk"] >= 0
                 and d["c_tg"] >= 0 and d["x_min"] > 0 and d["v_desired"] > 0 and d["jerk_max"] > 0
                 and d["jerk_emergency"] >= d["jerk_max"] and (v_max is None or v_max >= d["v_desired"]))
+
+    def _arrays_valid(self) -> bool:
+        """True when every field is a float array of one shape and every check passes, tested on
+        one stacked array (a failure falls through to the field-by-field checks and their messages)."""
+        d = self.__dict__
+        first = d["a_max"]
+        if type(first) is not np.ndarray:
+            return False
+        shape = first.shape
+        cols = []
+        for name in _FIELD_NAMES:
+            value = d[name]
+            if value is None:
+                continue
+            if type(value) is not np.ndarray or value.shape != shape or value.dtype != np.float64:
+                return False
+            cols.append(value)
+        a = np.stack(cols)
+        if not np.isfinite(a).all():
+            return False
+        g = dict(zip((n for n in _FIELD_NAMES if d[n] is not None), a))
+        ok = ((g["a_max"] > 0) & (g["a_min"] < 0) & (g["a_sail"] < 0) & (g["a_req_sail"] < 0)
+              & (g["a_sail"] > g["a_min"]) & (g["q1"] >= 0) & (g["q2"] > 0) & (g["r1"] > 0) & (g["r_jerk"] >= 0)
+              & (g["c_tg"] >= 0) & (g["x_min"] > 0) & (g["v_desired"] > 0) & (g["jerk_max"] > 0)
+              & (g["jerk_emergency"] >= g["jerk_max"]))
+        if "v_max" in g:
+            ok &= g["v_max"] >= g["v_desired"]
+        return bool(ok.all())
 
     @property
     def speed_limit(self):
@@ -405,16 +433,26 @@ class MPCDriver:
         idx = np.atleast_1d(np.asarray(index, dtype=np.int64))
         if idx.size and (idx.min() < 0 or idx.max() >= self.n):
             raise ValueError(f"driver index out of range [0, {self.n}): {idx}")
-        new = params.broadcast(idx.size)
         cur = self.params
-        if (cur.v_max is None) != (new.v_max is None) and cur.v_max is None:
+        if cur.v_max is None and params.v_max is not None:
             object.__setattr__(cur, "v_max", np.array(cur.speed_limit, dtype=float))
-        for f in fields(MPCDriverParams):
-            target = getattr(cur, f.name)
-            if target is None:
-                continue
-            value = getattr(new, f.name)
-            target[idx] = new.speed_limit if value is None else value
+        values = params.__dict__
+        if idx.size == 1 and all(values[name] is None or np.ndim(values[name]) == 0 for name in _FIELD_NAMES):
+            i = int(idx[0])  # one driver, plain numbers: no broadcast copies (resets are hot)
+            limit = values["v_desired"] if values["v_max"] is None else values["v_max"]
+            for name in _FIELD_NAMES:
+                target = getattr(cur, name)
+                if target is not None:
+                    value = values[name]
+                    target[i] = limit if value is None else value
+        else:
+            new = params.broadcast(idx.size)
+            for f in fields(MPCDriverParams):
+                target = getattr(cur, f.name)
+                if target is None:
+                    continue
+                value = getattr(new, f.name)
+                target[idx] = new.speed_limit if value is None else value
         p, s = cur, self.settings
         alpha, beta = terminal_chords(p.a_min[idx], p.jerk_max[idx], p.speed_limit[idx])
         self._alpha[idx], self._beta[idx] = alpha, beta
