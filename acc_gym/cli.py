@@ -12,6 +12,8 @@ scores a controller (a built-in name, or ``module:attribute`` naming an object w
 collisions and the extra metrics.
 
     acc-gym train {ppo,sac,td3} --env ID --timesteps T --seed S --out DIR [--num-envs 8]
+                  [--residual acc --residual-scale 0.3 [--shield]] [--score-bonus B] [--scenarios ...] [--weights ...]
+                  [--mix singlelane=0.75 carfollowing=0.25] [--algo-kwargs JSON]
 
 trains a policy with stable-baselines3 on the native vector env (progress bar, periodic
 evaluation on held-out seeds with the 100-point score, checkpoints, a manifest).
@@ -29,6 +31,20 @@ kept, its accelerations and jerk, and how its QPs were solved.
 
 scores a recorded drive (columns ``t, v, a, gap, v_lead``; see
 :mod:`acc_gym.evaluation.trace`) by paper 003's criteria and prints the episode report.
+
+    acc-gym leaderboard [--suite S] [--split test] [--controllers C ...] [--out leaderboard] [--workers 2]
+                        [--step-budget 1] [--budget 600] [--episodes N] [--no-report] [--json]
+
+scores controllers (default: every built-in), each in its own process with time budgets, on
+versioned suites (default: all four), prints the ranking and writes results.json,
+results.csv, leaderboard.md and report.html (see :mod:`acc_gym.leaderboard`).
+
+    acc-gym campaign --suite S --hours H --controller C --out DIR [--split test] [--root-seed R]
+                     [--workers N | --scheduler ADDRESS|local] [--chunk-size K] [--max-chunks M] [--json]
+
+runs (or resumes) a Monte Carlo campaign: H hours of suite S's traffic with controller C,
+on N local processes or a Dask cluster, one Parquet file per chunk in DIR, and prints paper
+004's metrics with confidence intervals (see :mod:`acc_gym.campaigns`).
 """
 
 from __future__ import annotations
@@ -194,11 +210,32 @@ def main(argv=None) -> int:
     p_tr.add_argument("--eval-freq", type=int, default=None, help="timesteps between evaluations (default T/5)")
     p_tr.add_argument("--eval-episodes", type=int, default=5)
     p_tr.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p_tr.add_argument("--residual", default=None, choices=["acc", "constant"],
+                      help="learn a residual on this base controller: clip(base + scale * policy, -1, 1)")
+    p_tr.add_argument("--residual-scale", type=float, default=0.3, help="scale of the residual action")
+    p_tr.add_argument("--residual-kwargs", default=None,
+                      help='JSON settings of the base controller, e.g. \'{"k1": 0.8, "s0": 0.5}\'')
+    p_tr.add_argument("--shield", action="store_true",
+                      help="with --residual: brake >= 2.5 m/s^2 whenever the observed Q = gap - Gapsafe < 0")
+    p_tr.add_argument("--score-bonus", type=float, default=0.0,
+                      help="add BONUS * score / 100 to each episode's last reward")
+    p_tr.add_argument("--scenarios", nargs="+", default=None, help="scenario ids or families to train on")
+    p_tr.add_argument("--weights", nargs="+", type=float, default=None, help="their sampling weights")
+    p_tr.add_argument("--mix", nargs="+", default=None, metavar="NAME=SHARE",
+                      help="train on families (or ids) with these shares, e.g. singlelane=0.75 carfollowing=0.25")
+    p_tr.add_argument("--algo-kwargs", default=None,
+                      help='JSON keyword arguments of the algorithm, e.g. \'{"policy_kwargs": {"log_std_init": -2}}\'')
     p_dd = sub.add_parser("driver-demo", help="simulate an MPC human-like driver and print what it did")
     p_dd.add_argument("--driver", default="#57", help="paper 001 Table 4 preset: #23, #57, #61 or #13")
     p_dd.add_argument("--speed", type=float, default=25.0, help="the lead's cruise speed [m/s]")
     p_dd.add_argument("--json", action="store_true", help="print one JSON object")
+    _add_campaign_parser(sub)
+    _add_leaderboard_parser(sub)
     args = parser.parse_args(argv)
+    if args.command == "campaign":
+        return _campaign(args, parser)
+    if args.command == "leaderboard":
+        return _leaderboard(args, parser)
     if args.command in ("scenarios", "score"):
         try:
             print(_scenarios(args) if args.command == "scenarios" else _score(args))
@@ -235,8 +272,20 @@ def main(argv=None) -> int:
         except ImportError as exc:
             parser.error(f"training needs stable-baselines3 and torch: pip install 'acc-gym[rl]' ({exc})")
         try:
+            env_settings = {k: tuple(v) for k, v in (("scenarios", args.scenarios), ("weights", args.weights))
+                            if v is not None}
+            algo_kwargs = json.loads(args.algo_kwargs) if args.algo_kwargs else None
+            mix = None
+            if args.mix:
+                if not all("=" in m for m in args.mix):
+                    raise ValueError(f"--mix takes NAME=SHARE items, got {args.mix}")
+                mix = {m.split("=", 1)[0]: float(m.split("=", 1)[1]) for m in args.mix}
             run = train(args.algo, args.env, args.timesteps, args.seed, args.out, args.num_envs, args.eval_freq,
-                        args.eval_episodes, progress=not args.no_progress)
+                        args.eval_episodes, progress=not args.no_progress, algo_kwargs=algo_kwargs,
+                        residual=args.residual, residual_scale=args.residual_scale, shield=args.shield,
+                        residual_kwargs=json.loads(args.residual_kwargs) if args.residual_kwargs else None,
+                        score_bonus=args.score_bonus,
+                        mix=mix, **env_settings)
         except (ValueError, TypeError) as exc:
             parser.error(str(exc))
         final = json.loads((run / "manifest.json").read_text())["final_evaluation"]
@@ -255,6 +304,61 @@ def main(argv=None) -> int:
             print(json.dumps(summary))
         else:
             _print_summary(args.controller, args.env, summary)
+    return 0
+
+
+def _add_campaign_parser(sub) -> None:
+    p = sub.add_parser("campaign", help="run or resume a Monte Carlo campaign of a suite's traffic "
+                                        "(needs pyarrow; Dask for --scheduler)")
+    p.add_argument("--suite", required=True, help="a suite name (singlelane-v1, carfollowing-v1, ncap-v1, "
+                                                   "malicious-v1)")
+    p.add_argument("--hours", type=float, required=True, help="hours of traffic to simulate")
+    p.add_argument("--controller", required=True, help="a built-in controller, module:attribute or a saved model")
+    p.add_argument("--out", required=True, help="output directory (resumed if it holds this campaign)")
+    p.add_argument("--split", default="test", help="the suite's split: dev or test (default test)")
+    p.add_argument("--root-seed", type=int, default=None, help="root seed (default: the split's own)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local worker processes (default: the CPU count); with --scheduler local, the "
+                        "LocalCluster's size (default 2)")
+    p.add_argument("--scheduler", default=None, help="a Dask scheduler address, or 'local' for a LocalCluster")
+    p.add_argument("--chunk-size", type=int, default=20, help="scenarios per task and per result file")
+    p.add_argument("--max-chunks", type=int, default=None, help="run at most this many missing chunks now")
+    p.add_argument("--confidence", type=float, default=0.95, help="confidence level of the intervals")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+
+
+def _campaign(args, parser) -> int:
+    import os
+
+    from acc_gym.campaigns import CampaignError, MissingDependencyError, format_summary, run_campaign
+
+    if args.workers is not None and args.scheduler not in (None, "local"):
+        parser.error(f"--workers {args.workers} sets the size of --scheduler local only; a running cluster "
+                     f"({args.scheduler}) has its own workers")
+    workers = args.workers if args.workers is not None else (2 if args.scheduler else (os.cpu_count() or 1))
+    done = []
+
+    def progress(number, n_done, total):
+        done.append(number)
+        if not args.json and sys.stderr.isatty():
+            print(f"\rchunks {n_done}/{total}", end="", file=sys.stderr, flush=True)
+
+    try:
+        summary = run_campaign(args.suite, args.hours, args.controller, args.out, split=args.split,
+                               root_seed=args.root_seed, workers=workers, scheduler=args.scheduler,
+                               chunk_size=args.chunk_size, max_chunks=args.max_chunks, confidence=args.confidence,
+                               on_chunk=progress)
+    except MissingDependencyError as exc:
+        parser.error(str(exc))
+    except (CampaignError, ValueError, TypeError, OSError) as exc:
+        parser.error(str(exc))
+    if done and not args.json and sys.stderr.isatty():
+        print(file=sys.stderr)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(format_summary(summary))
+        print(f"results: {args.out} (summary.json, chunks/*.parquet)")
     return 0
 
 
@@ -282,6 +386,58 @@ def _print_summary(controller: str, env_id: str, s: dict) -> None:
     os_ = "n/a" if s["mean_speed_overshoot"] is None else f"{s['mean_speed_overshoot']:.2f}"
     print(f"  comfortable {s['share_comfortable']:.1%}, safe spacing {safe}, min TTC {ttc}, "
           f"max jerk {s['max_jerk']:.2f} m/s^3, mean speed overshoot {os_}")
+
+
+def _add_leaderboard_parser(sub) -> None:
+    from acc_gym.leaderboard.run import DEFAULT_BUDGET, DEFAULT_STEP_BUDGET, DEFAULT_WORKERS
+
+    p = sub.add_parser("leaderboard", help="score controllers on versioned suites and rank them")
+    p.add_argument("--suite", action="append", default=None,
+                   help="a suite (carfollowing-v1, malicious-v1, ncap-v1, singlelane-v1); repeat or "
+                        "comma-separate for several (default: all four)")
+    p.add_argument("--split", default="test", help="dev or test (default test)")
+    p.add_argument("--controllers", nargs="+", default=None,
+                   help="built-in names, module:attribute or saved model paths (default: every built-in)")
+    p.add_argument("--out", default="leaderboard", help="output directory (default leaderboard/)")
+    p.add_argument("--workers", type=int, default=DEFAULT_WORKERS, help="controllers run in parallel")
+    p.add_argument("--step-budget", type=float, default=DEFAULT_STEP_BUDGET,
+                   help="seconds a predict() call may take (the first call is exempt)")
+    p.add_argument("--budget", type=float, default=DEFAULT_BUDGET, help="seconds per controller in all")
+    p.add_argument("--episodes", type=int, default=None, help="run at most N episodes of each suite")
+    p.add_argument("--no-report", action="store_true", help="skip report.html (and its episode re-runs)")
+    p.add_argument("--json", action="store_true", help="print the ranking as one JSON object")
+
+
+def _leaderboard(args, parser) -> int:
+    from acc_gym.leaderboard import run_leaderboard
+    from acc_gym.leaderboard.results import text_table
+
+    suites = None if args.suite is None else [s.strip() for arg in args.suite for s in arg.split(",") if s.strip()]
+
+    def progress(outcome):
+        if not args.json:
+            state = "ok" if outcome.status == "ok" else f"FAILED: {outcome.reason}"
+            print(f"  {outcome.reference}: {len(outcome.episodes)} episodes in {outcome.wall_time_s:.1f} s, "
+                  f"{state}", file=sys.stderr, flush=True)
+
+    try:
+        results = run_leaderboard(suites, args.split, args.controllers, out=args.out, workers=args.workers,
+                                  step_budget=args.step_budget, budget=args.budget, episodes=args.episodes,
+                                  report=not args.no_report, progress=progress)
+    except (ValueError, TypeError) as exc:
+        parser.error(str(exc))
+    if args.json:
+        by_name = {c["name"]: c for c in results["controllers"]}
+        print(json.dumps({"ranking": [{"controller": n, "status": by_name[n]["status"], "reason": by_name[n]["reason"],
+                                       "summary": by_name[n]["summary"] and by_name[n]["summary"]["overall"]}
+                                      for n in results["ranking"]], "files": results["files"]}))
+    else:
+        m = results["manifest"]
+        print(f"leaderboard, split {m['split']}: " + ", ".join(
+            f"{s['name']} ({s['episodes_run']} episodes, sha256 {s['hash'][:12]})" for s in m["suites"]))
+        print(text_table(results))
+        print(f"files: {', '.join(results['files'].values())} ({m['timings']['total_wall_s']:.0f} s)")
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -8,8 +8,6 @@ same directory, then ``os.replace``), so a reader never sees a half-written imag
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +15,7 @@ from matplotlib.backend_bases import FigureCanvasBase
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from acc_gym._io import atomic_write
 from acc_gym.drivers.mpc import Mode
 
 SLOT_LABELS = ("ego", "POV", "POV2")  # slot 0, 1, 2 (scenario roles SV, POV, POV2)
@@ -104,14 +103,4 @@ def save_figure(fig: Figure, path, *, dpi: int = 100) -> Path:
     if type(fig.canvas) is FigureCanvasBase:  # a bare Figure: give it an Agg canvas (no pyplot involved)
         FigureCanvasAgg(fig)
     fmt = path.suffix[1:].lower() or "png"
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format=fmt, dpi=dpi)
-        os.chmod(tmp, 0o644)  # mkstemp's 0600 would otherwise carry over
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return atomic_write(path, lambda fh: fig.savefig(fh, format=fmt, dpi=dpi))

@@ -26,3 +26,13 @@ def test_bench_env_json_keys():
     out = json.loads(r.stdout)
     assert out["env_steps_per_s"] > 0 and out["vector_env_steps_per_s"] > 0 and out["num_envs"] == 8
     assert len(out["env_steps_per_s_runs"]) == 1
+
+
+def test_bench_campaign_json_keys():
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_campaign.py"), "--json", "--repeats", "1",
+                        "--suite", "ncap-v1", "--hours", "0.005", "--chunk-size", "1"], capture_output=True, text=True,
+                       check=True, cwd=ROOT)
+    out = json.loads(r.stdout)
+    assert out["scenarios"] == 2  # 0.005 h = 18 s: the first two NCAP tests
+    for key in ("scenarios_per_s_1_worker", "scenarios_per_s_2_workers", "scenarios_per_s_dask_2_workers"):
+        assert out[key] > 0 and len(out[key + "_runs"]) == 1

@@ -67,6 +67,7 @@ from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 
+from acc_gym._io import json_safe
 from acc_gym._validation import from_mapping
 from acc_gym.evaluation.indicators import comfort_j, efficiency_u, gap_safe, in_band, safety_q
 from acc_gym.evaluation.metrics import extra_metrics
@@ -172,21 +173,8 @@ class EpisodeReport:
         raise KeyError(name)
 
     def to_dict(self) -> dict:
-        def clean(x):
-            if isinstance(x, dict):
-                return {k: clean(v) for k, v in x.items()}
-            if isinstance(x, (list, tuple)):
-                return [clean(v) for v in x]
-            if isinstance(x, (bool, np.bool_)):
-                return bool(x)
-            if isinstance(x, (int, np.integer)):
-                return int(x)
-            if isinstance(x, (float, np.floating)):
-                x = float(x)
-                return None if math.isnan(x) else (str(x) if math.isinf(x) else x)
-            return x
-
-        return clean({
+        """JSON-safe (NaN -> None, infinities -> ``"inf"``; :func:`acc_gym._io.json_safe`)."""
+        return json_safe({
             "score": self.score, "qualified": self.qualified, "r1": self.r1, "r2": self.r2, "u": self.u,
             "j_x": self.j_x, "j_y": self.j_y, "tau1": self.tau1,
             "items": {it.name: {"qualified": it.qualified, "applicable": it.applicable, "points": it.points,

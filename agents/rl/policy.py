@@ -2,7 +2,10 @@
 
 Training normalises observations (``VecNormalize``); the running mean and variance are
 saved next to the model (``obs_rms.npz``) and applied here, so a saved model is scored
-through the same path as the hand-written controllers.
+through the same path as the hand-written controllers. A residual run (``residual`` in
+its manifest, :mod:`agents.rl.residual`) executes ``clip(base(obs) + scale * model(obs),
+-1, 1)`` with the base controller on the raw observation (and the proper-response shield
+when ``shield`` is set), as in training.
 """
 
 from __future__ import annotations
@@ -19,10 +22,20 @@ MANIFEST_FILE = "manifest.json"
 
 
 class SB3Policy:
-    """A loaded model plus its observation normalisation."""
+    """A loaded model plus its observation normalisation (and, for a residual run, its base controller)."""
 
-    def __init__(self, model, mean: np.ndarray, var: np.ndarray, clip: float = 10.0, eps: float = 1e-8):
+    def __init__(self, model, mean: np.ndarray, var: np.ndarray, clip: float = 10.0, eps: float = 1e-8,
+                 residual: str | None = None, residual_scale: float | None = None, shield: bool = False,
+                 residual_kwargs: dict | None = None):
         self.model, self.mean, self.var, self.clip, self.eps = model, mean, var, clip, eps
+        self.residual, self.residual_scale, self.base, self.shield = residual, residual_scale, None, bool(shield)
+        if shield and residual is None:
+            raise ValueError("the proper-response shield is an option of residual policies")
+        if residual is not None:
+            from agents.rl.residual import check_scale, make_base
+
+            self.base = make_base(residual, residual_kwargs)
+            self.residual_scale = check_scale(residual_scale)
 
     def reset(self) -> None:
         pass
@@ -33,6 +46,10 @@ class SB3Policy:
 
     def predict(self, obs, state=None, episode_start=None, deterministic: bool = True):
         action, _ = self.model.predict(self.normalise(obs), deterministic=deterministic)
+        if self.base is not None:
+            from agents.rl.residual import controller_action
+
+            action = controller_action(obs, action, self.base, self.residual_scale, self.shield)
         return action, None
 
 
@@ -55,4 +72,7 @@ def load_policy(path) -> SB3Policy:
     cls = {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[algo]
     model = cls.load(str(path if path.suffix == ".zip" else run / MODEL_FILE), device="cpu")
     rms = np.load(run / RMS_FILE)
-    return SB3Policy(model, rms["mean"], rms["var"], float(rms["clip"]))
+    residual = manifest.get("residual")
+    return SB3Policy(model, rms["mean"], rms["var"], float(rms["clip"]), residual=residual,
+                     residual_scale=manifest.get("residual_scale") if residual is not None else None,
+                     shield=bool(manifest.get("shield", False)), residual_kwargs=manifest.get("residual_kwargs"))

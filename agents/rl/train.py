@@ -3,11 +3,16 @@
     acc-gym train ppo --env acc_gym/CarFollowing-v0 --timesteps 200000 --seed 0 --out runs/ppo
 
 writes into ``--out``: ``model.zip`` (the final model), ``obs_rms.npz`` (observation
-normalisation), ``checkpoints/`` (a model and its normalisation at every evaluation),
+normalisation), ``checkpoints/`` (a model, its normalisation and a short manifest at every evaluation),
 ``evaluations.json`` (the 100-point score on held-out seeds at every evaluation) and
 ``manifest.json`` (package versions, algorithm, env id, config, seeds, budget, timings),
 all written atomically. Evaluation seeds come from ``seed + 1_000_003`` -- never a
 training seed.
+
+``residual="acc"`` trains a residual policy on top of the linear ACC (executed action
+``clip(a_acc(obs) + residual_scale * a_rl, -1, 1)``, :mod:`agents.rl.residual`);
+``score_bonus`` adds ``score_bonus * score / 100`` at each episode's end. Both are
+recorded in the manifest, and :func:`agents.rl.policy.load_policy` applies the residual.
 """
 
 from __future__ import annotations
@@ -63,10 +68,38 @@ def _versions() -> dict:
     return out
 
 
+def mix_settings(mix: dict) -> dict:
+    """Env settings (``scenarios``, ``weights``) drawing each of ``mix``'s families or ids with its share,
+    and within a family by its default probabilities: ``{"singlelane": 0.75, "carfollowing": 0.25}``."""
+    from acc_gym.envs.config import EnvConfig
+
+    if not mix:
+        raise ValueError("mix must name at least one scenario family or id")
+    total = sum(float(w) for w in mix.values())
+    if not all(float(w) >= 0 for w in mix.values()) or total <= 0:
+        raise ValueError(f"mix shares must be >= 0 with a positive sum, got {mix!r}")
+    ids, weights = [], []
+    for name, share in mix.items():
+        cfg = EnvConfig(scenarios=(name,))
+        ids += list(cfg.scenarios)
+        weights += [float(share) / total * float(p) for p in cfg.probabilities]
+    return {"scenarios": tuple(ids), "weights": tuple(weights)}
+
+
 def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 100_000, seed: int = 0,
           out: str | os.PathLike = "runs/acc", num_envs: int = 8, eval_freq: int | None = None,
-          eval_episodes: int = 5, progress: bool = False, algo_kwargs: dict | None = None, **env_settings) -> Path:
-    """Train ``algo`` (``ppo``, ``sac``, ``td3``) and write the run directory; returns its path."""
+          eval_episodes: int = 5, progress: bool = False, algo_kwargs: dict | None = None,
+          residual: str | None = None, residual_scale: float = 0.3, shield: bool = False,
+          residual_kwargs: dict | None = None, score_bonus: float = 0.0,
+          mix: dict | None = None, **env_settings) -> Path:
+    """Train ``algo`` (``ppo``, ``sac``, ``td3``) and write the run directory; returns its path.
+
+    ``residual``: a base controller name (:data:`agents.rl.residual.BASES`, its settings
+    ``residual_kwargs``) to learn a correction of, scaled by ``residual_scale``; ``shield``:
+    cap the action at a firm brake while the observed Q < 0
+    (:func:`agents.rl.residual.proper_response_shield`); ``score_bonus``: weight of the
+    episode's 100-point score (/100) added to its last reward; ``mix``: scenario families (or
+    ids) and their shares (:func:`mix_settings`), instead of ``scenarios`` / ``weights``."""
     import gymnasium as gym
     import stable_baselines3 as sb3
     from stable_baselines3.common.callbacks import BaseCallback
@@ -82,11 +115,28 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
         if int(value) != value or value < 1:
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
     spec = gym.spec(env_id)  # raises for an unknown id
+    if mix:
+        if "scenarios" in env_settings or "weights" in env_settings:
+            raise ValueError("give either mix or scenarios / weights, not both")
+        env_settings = {**env_settings, **mix_settings(mix)}
     settings = {**spec.kwargs, **env_settings}
     out = Path(out)
     (out / "checkpoints").mkdir(parents=True, exist_ok=True)
-    venv = VecNormalize(SB3VecEnv(int(num_envs), seed=int(seed), **settings), norm_obs=True, norm_reward=False,
-                        clip_obs=10.0)
+    raw = SB3VecEnv(int(num_envs), seed=int(seed), **settings)
+    if residual is not None:
+        from agents.rl.residual import ResidualVecEnv, check_scale
+
+        residual_scale = check_scale(residual_scale)
+        raw = ResidualVecEnv(raw, residual, residual_scale, shield, residual_kwargs)  # below VecNormalize: raw obs
+    elif shield:
+        raise ValueError("shield=True needs a residual base controller (residual='acc')")
+    if residual_kwargs and residual is None:
+        raise ValueError("residual_kwargs needs a residual base controller (residual='acc')")
+    if score_bonus:
+        from agents.rl.residual import ScoreBonusVecEnv
+
+        raw = ScoreBonusVecEnv(raw, score_bonus)
+    venv = VecNormalize(raw, norm_obs=True, norm_reward=False, clip_obs=10.0)
     cls = {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[algo]
     model = cls("MlpPolicy", venv, seed=int(seed), device="cpu", verbose=0, **(algo_kwargs or {}))
     eval_freq = int(eval_freq) if eval_freq else max(int(timesteps) // 5, 1)
@@ -94,7 +144,9 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
 
     def run_eval(step: int) -> dict:
         rms = venv.obs_rms
-        policy = SB3Policy(model, rms.mean.copy(), rms.var.copy(), venv.clip_obs)
+        policy = SB3Policy(model, rms.mean.copy(), rms.var.copy(), venv.clip_obs, residual=residual,
+                           residual_scale=residual_scale if residual is not None else None, shield=shield,
+                           residual_kwargs=residual_kwargs)
         summary = evaluate(policy, env_id, episodes=eval_episodes, seed=int(seed) + EVAL_SEED_OFFSET, **env_settings)
         entry = {"timesteps": step, "mean_score": summary["mean_score"], "share_qualified": summary["share_qualified"],
                  "collisions": summary["collisions"]}
@@ -103,6 +155,11 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
         ck.mkdir(exist_ok=True)
         _save_model(model, ck / MODEL_FILE)
         _save_rms(ck / RMS_FILE, venv)
+        ck_manifest = {"algo": algo, "env_id": env_id, "timesteps": step, "seed": int(seed), "checkpoint": True,
+                       "evaluation": entry, "residual": residual,
+                       "residual_scale": float(residual_scale) if residual is not None else None,
+                       "shield": bool(shield), "residual_kwargs": residual_kwargs or None}
+        _atomic_write(ck / MANIFEST_FILE, json.dumps(ck_manifest, indent=1).encode())  # loadable on its own
         _atomic_write(out / "evaluations.json", json.dumps(evaluations, indent=1).encode())
         return entry
 
@@ -129,7 +186,10 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
                 "timesteps": int(model.num_timesteps), "seed": int(seed), "num_envs": int(num_envs),
                 "eval_seed": int(seed) + EVAL_SEED_OFFSET, "eval_episodes": int(eval_episodes),
                 "final_evaluation": final, "train_wall_time_s": wall, "versions": _versions(),
-                "algo_kwargs": algo_kwargs or {}}
+                "algo_kwargs": algo_kwargs or {}, "residual": residual,
+                "residual_scale": float(residual_scale) if residual is not None else None,
+                "shield": bool(shield), "residual_kwargs": residual_kwargs or None,
+                "score_bonus": float(score_bonus), "mix": dict(mix) if mix else None}
     _atomic_write(out / MANIFEST_FILE, json.dumps(manifest, indent=1, default=str).encode())
     venv.close()
     return out

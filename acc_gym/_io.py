@@ -1,0 +1,56 @@
+"""Small file helpers shared by every writer of results: atomic writes and JSON-safe values.
+
+Results files (leaderboard reports, campaign chunks and summaries, plots, training
+manifests) are written through a temporary file in the same directory, flushed to disk
+and moved into place with ``os.replace``, so a reader (or a resumed run) sees either the
+whole file or none. Temporary files are named ``.<name>.<random>.tmp``, so a folder's
+leftovers from a killed process match ``.*.tmp``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+
+def atomic_write(path, data: str | bytes | Callable) -> Path:
+    """Write ``data`` (text, bytes, or a callable ``write(binary_file)``) to ``path`` atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            if callable(data):
+                data(f)
+            else:
+                f.write(data.encode("utf-8") if isinstance(data, str) else data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)  # mkstemp's 0600 would otherwise carry over
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def json_safe(x):
+    """NaN -> None, infinities -> their string (``"inf"``), numpy scalars -> Python, recursively."""
+    if isinstance(x, dict):
+        return {str(k): json_safe(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [json_safe(v) for v in x]
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        x = float(x)
+        return None if math.isnan(x) else (str(x) if math.isinf(x) else x)
+    return x

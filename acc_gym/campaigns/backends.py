@@ -1,0 +1,102 @@
+"""Where a campaign's chunks run: in this process, a local process pool, or a Dask cluster.
+
+Each backend is a generator of ``(task, rows)`` pairs in completion order (which varies:
+the caller stores every chunk under its own number, so order never matters). Closing the
+generator early (an error, Ctrl-C) cancels the chunks not yet started and releases the
+pool or the cluster connection.
+
+* ``workers == 1`` without a scheduler: chunks run one after the other in the calling
+  process (no start-up cost, plain tracebacks).
+* ``workers > 1``: ``concurrent.futures.ProcessPoolExecutor`` with the ``forkserver``
+  start method where the platform has it, else ``spawn`` -- never ``fork``, which would
+  copy the caller's threads (numba, BLAS) into the children.
+* ``scheduler``: a Dask distributed cluster -- a scheduler address (``tcp://host:8786``),
+  ``"local"`` to start a ``LocalCluster`` of ``workers`` single-threaded processes on
+  127.0.0.1 (closed afterwards), or a ``distributed.Client`` you made (left open). Each chunk
+  is one task with a deterministic key (``acc-gym-chunk-FINGERPRINT-NUMBER``: the same chunk
+  of the same campaign is the same computation) and ``retries=2``, so a chunk whose worker
+  dies is re-run elsewhere; a chunk that still fails stops the campaign with its error.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+from collections.abc import Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+from acc_gym.campaigns.episodes import ChunkTask, run_chunk
+from acc_gym.campaigns.errors import CampaignError, require_distributed
+
+RETRIES = 2
+
+
+def run_inline(tasks: list[ChunkTask]) -> Iterator[tuple[ChunkTask, list[dict]]]:
+    for task in tasks:
+        yield task, run_chunk(task)
+
+
+def pool_context():
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+def run_pool(tasks: list[ChunkTask], workers: int) -> Iterator[tuple[ChunkTask, list[dict]]]:
+    if not tasks:
+        return
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=pool_context())
+    try:
+        pending = {pool.submit(run_chunk, task): task for task in tasks}
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in sorted(done, key=lambda f: pending[f].chunk.number):
+                task = pending.pop(fut)
+                yield task, fut.result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def run_dask(tasks: list[ChunkTask], scheduler, workers: int, fingerprint: str) \
+        -> Iterator[tuple[ChunkTask, list[dict]]]:
+    distributed = require_distributed()
+    cluster = None
+    if isinstance(scheduler, distributed.Client):
+        client, own_client = scheduler, False
+    else:
+        if scheduler == "local":
+            cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                               host="127.0.0.1", dashboard_address=None)
+            scheduler = cluster
+        try:
+            client, own_client = distributed.Client(scheduler), True
+        except (OSError, TimeoutError) as exc:
+            if cluster is not None:
+                cluster.close()
+            raise CampaignError(f"cannot connect to the Dask scheduler {scheduler!r}: {exc}") from None
+    futures = []
+    try:
+        if not tasks:
+            return
+        by_key = {}
+        for task in tasks:
+            key = f"acc-gym-chunk-{fingerprint}-{task.chunk.number}"
+            fut = client.submit(run_chunk, task, key=key, retries=RETRIES, pure=False)
+            by_key[fut.key] = task
+            futures.append(fut)
+        for fut in distributed.as_completed(futures):
+            yield by_key[fut.key], fut.result()
+    finally:
+        if futures:
+            client.cancel(futures)
+        if own_client:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def execute(tasks: list[ChunkTask], *, workers: int, scheduler, fingerprint: str):
+    """The ``(task, rows)`` pairs of ``tasks`` run on the chosen backend."""
+    if scheduler is not None:
+        return run_dask(tasks, scheduler, workers, fingerprint)
+    if workers == 1:
+        return run_inline(tasks)
+    return run_pool(tasks, workers)

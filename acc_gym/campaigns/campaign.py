@@ -1,0 +1,184 @@
+"""Run, resume and load a Monte Carlo campaign.
+
+:func:`run_campaign` plans the campaign (:mod:`~acc_gym.campaigns.plan`), writes or checks
+its manifest (:mod:`~acc_gym.campaigns.manifest`), skips every chunk whose file already
+exists and validates (:mod:`~acc_gym.campaigns.store`), runs the rest on a backend
+(:mod:`~acc_gym.campaigns.backends`), writes each chunk's file as soon as it arrives, and
+finally writes ``summary.json`` (:mod:`~acc_gym.campaigns.summary`). A campaign stopped at
+any point (killed, Ctrl-C, ``max_chunks``) and run again with the same settings finishes
+the missing chunks only: each episode is stored exactly once, and the results are the
+same as an uninterrupted run's.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from acc_gym.campaigns import store
+from acc_gym.campaigns.episodes import ChunkTask
+from acc_gym.campaigns.errors import CampaignError, require_distributed, require_pyarrow
+from acc_gym.campaigns.manifest import Settings, build_manifest, check_manifest, compare
+from acc_gym.campaigns.plan import (Chunk, check_hours, check_positive_int, check_root_seed, check_split, chunks,
+                                    plan_length, resolve_suite)
+
+DEFAULT_CHUNK_SIZE = 20
+_CHUNK_FILE = re.compile(r"^chunk-(\d{6})\.parquet$")
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """A campaign directory's manifest and the rows of its finished chunks (sorted by scenario index)."""
+
+    out_dir: Path
+    manifest: dict
+    settings: Settings
+    table: object  # pyarrow.Table
+    chunks_done: tuple  # chunk numbers with a valid file
+
+    @property
+    def complete(self) -> bool:
+        return len(self.chunks_done) == self.manifest["n_chunks"]
+
+    @property
+    def episodes(self) -> int:
+        return self.table.num_rows
+
+    def rows(self) -> list[dict]:
+        return self.table.to_pylist()
+
+    def missing_chunks(self) -> list[Chunk]:
+        done = set(self.chunks_done)
+        return [c for c in self.all_chunks() if c.number not in done]
+
+    def all_chunks(self) -> list[Chunk]:
+        return chunks(self.manifest["n_scenarios"], self.manifest["chunk_size"])
+
+
+def _read_manifest(out_dir: Path) -> tuple[dict, Settings]:
+    path = out_dir / store.MANIFEST
+    manifest = store.read_json(path, "campaign manifest")
+    return manifest, check_manifest(manifest, path)
+
+
+def _check_chunk_files(out_dir: Path, n_chunks: int) -> None:
+    folder = out_dir / store.CHUNK_DIR
+    if not folder.is_dir():
+        return
+    for p in sorted(folder.iterdir()):
+        if p.name.startswith(".") and p.name.endswith(".tmp"):
+            continue
+        m = _CHUNK_FILE.match(p.name)
+        if m is None or int(m.group(1)) >= n_chunks:
+            raise CampaignError(f"{p} is not a chunk file of this campaign ({n_chunks} chunks: chunk-000000.parquet "
+                                f".. chunk-{n_chunks - 1:06d}.parquet); move it away")
+
+
+def load_campaign(out_dir) -> Campaign:
+    """A campaign directory's manifest and validated results so far (see :mod:`acc_gym.campaigns.store`)."""
+    pa, _ = require_pyarrow()
+    out_dir = Path(out_dir)
+    if not (out_dir / store.MANIFEST).is_file():
+        raise CampaignError(f"{out_dir} holds no campaign ({store.MANIFEST} not found)")
+    manifest, settings = _read_manifest(out_dir)
+    _check_chunk_files(out_dir, manifest["n_chunks"])
+    tables, done = [], []
+    for chunk in chunks(manifest["n_scenarios"], manifest["chunk_size"]):
+        if store.chunk_exists(out_dir, chunk):
+            tables.append(store.read_chunk(out_dir, chunk, settings.fingerprint))
+            done.append(chunk.number)
+    table = pa.concat_tables(tables) if tables else store.schema().empty_table()
+    return Campaign(out_dir, manifest, settings, table, tuple(done))
+
+
+def _controller_ref(controller) -> str:
+    """Check the controller loads here (fail before planning) and return its reference; a saved model's path
+    is made absolute so that workers started elsewhere find it."""
+    if not isinstance(controller, str) or not controller:
+        raise CampaignError(f"controller must be a reference string (a built-in name, 'module:attribute' or a "
+                            f"saved model path), got {controller!r}")
+    from acc_gym.evaluation.runner import load_controller
+
+    try:
+        load_controller(controller)
+    except (ValueError, TypeError) as exc:
+        raise CampaignError(str(exc)) from None
+    if ":" not in controller and Path(controller).exists():
+        return str(Path(controller).resolve())
+    return controller
+
+
+def run_campaign(suite, hours: float, controller: str, out_dir, *, split: str = "test", root_seed: int | None = None,
+                 workers: int = 1, scheduler=None, chunk_size: int = DEFAULT_CHUNK_SIZE,
+                 max_chunks: int | None = None, confidence: float = 0.95, on_chunk=None) -> dict:
+    """Run (or resume) a campaign of ``hours`` of ``suite``'s traffic with ``controller``; return its summary.
+
+    ``suite``: a registered name (``"singlelane-v1"``) or a suite object; ``split``: ``"dev"`` or
+    ``"test"``; ``root_seed``: default the split's own (see :mod:`acc_gym.campaigns.plan`);
+    ``workers``: local processes (1: this process), or the ``LocalCluster`` size with
+    ``scheduler="local"``; ``scheduler``: a Dask scheduler address, ``"local"`` or a
+    ``distributed.Client`` (see :mod:`acc_gym.campaigns.backends`); ``chunk_size``:
+    scenarios per task and per file; ``max_chunks``: run at most that many missing chunks
+    now (the rest on a later call); ``on_chunk(number, done, total)``: called after each
+    chunk file is written. Results go to ``out_dir``.
+    """
+    require_pyarrow()
+    hours = check_hours(hours)
+    chunk_size = check_positive_int("chunk size", chunk_size)
+    workers = check_positive_int("workers", workers)
+    if max_chunks is not None:
+        max_chunks = check_positive_int("max_chunks", max_chunks)
+    if not 0.0 < confidence < 1.0:
+        raise CampaignError(f"confidence must be in (0, 1), got {confidence!r}")
+    if scheduler is not None:
+        distributed = require_distributed()
+        if not (isinstance(scheduler, distributed.Client) or (isinstance(scheduler, str) and scheduler)):
+            raise CampaignError(f"scheduler must be a Dask scheduler address, 'local' or a distributed.Client, "
+                                f"got {scheduler!r}")
+    split = check_split(split)
+    suite_obj = resolve_suite(suite)
+    root = suite_obj.root_seed(split) if root_seed is None else check_root_seed(root_seed)
+    controller = _controller_ref(controller)
+    import acc_gym
+
+    settings = Settings(suite=str(suite_obj.name), suite_version=str(suite_obj.version),
+                        suite_hash=str(suite_obj.hash(split)), env_id=str(suite_obj.env_id), split=split,
+                        root_seed=int(root), controller=controller, hours=hours, chunk_size=chunk_size,
+                        acc_gym_version=acc_gym.__version__)
+    out_dir = Path(out_dir)
+    manifest_path = out_dir / store.MANIFEST
+    if manifest_path.is_file():
+        manifest, existing = _read_manifest(out_dir)
+        compare(existing, settings, manifest_path)
+    else:
+        if (out_dir / store.CHUNK_DIR).is_dir() and any((out_dir / store.CHUNK_DIR).glob("chunk-*")):
+            raise CampaignError(f"{out_dir} holds chunk files but no {store.MANIFEST}; use another output directory")
+        n, seconds = plan_length(suite_obj, split, settings.root_seed, hours)
+        manifest = build_manifest(settings, n, len(chunks(n, chunk_size)), seconds)
+        store.write_json(manifest_path, manifest)
+    store.remove_stray_temps(out_dir)
+    done = load_campaign(out_dir)  # validates every chunk file already there
+    todo = done.missing_chunks()
+    if max_chunks is not None:
+        todo = todo[:max_chunks]
+    # workers resolve a suite given by name themselves (no pickling of suite objects to remote workers)
+    task_suite = suite if isinstance(suite, str) else suite_obj
+    tasks = [ChunkTask(task_suite, split, settings.root_seed, controller, settings.env_id, c) for c in todo]
+    from acc_gym.campaigns.backends import execute
+
+    n_done, total = len(done.chunks_done), manifest["n_chunks"]
+    results = execute(tasks, workers=workers, scheduler=scheduler, fingerprint=settings.fingerprint)
+    try:
+        for task, rows in results:
+            store.write_chunk(out_dir, task.chunk, rows, settings.fingerprint)
+            n_done += 1
+            if on_chunk is not None:
+                on_chunk(task.chunk.number, n_done, total)
+    finally:
+        results.close()
+    from acc_gym.campaigns.summary import summarise_campaign
+
+    summary = summarise_campaign(load_campaign(out_dir), confidence)
+    store.write_json(out_dir / store.SUMMARY, summary)
+    return summary

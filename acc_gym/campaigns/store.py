@@ -1,0 +1,119 @@
+"""A campaign's files: ``campaign.json``, ``chunks/chunk-NNNNNN.parquet``, ``summary.json``.
+
+**Atomic writes.** Every file is written to a temporary file in the same directory
+(``.NAME.PID.RANDOM.tmp``), flushed to disk, then moved over its name with
+``os.replace``: a reader (or a resumed campaign) sees either the whole file or none. A
+campaign killed mid-write leaves at most a stray temporary file, which is ignored and
+removed when the campaign resumes. One campaign process per directory.
+
+**Validation.** A chunk file counts only if it reads as Parquet, has exactly the
+expected schema (:data:`acc_gym.campaigns.episodes.COLUMNS`), carries the campaign's
+fingerprint and chunk number in its metadata, and holds one row for each of the chunk's
+scenario indices, in order. Since writes are atomic, a file failing these checks was
+damaged or put there by something else: it raises :class:`CampaignError` naming the file
+(and saying to delete it to run that chunk again) instead of being re-run silently or,
+worse, read as empty. The same holds for ``campaign.json`` and ``summary.json``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from acc_gym._io import atomic_write as _atomic_write
+from acc_gym.campaigns.episodes import COLUMN_NAMES, COLUMNS
+from acc_gym.campaigns.errors import CampaignError, require_pyarrow
+from acc_gym.campaigns.plan import Chunk
+
+MANIFEST = "campaign.json"
+SUMMARY = "summary.json"
+CHUNK_DIR = "chunks"
+META_FINGERPRINT = b"acc_gym.campaign.fingerprint"
+META_CHUNK = b"acc_gym.campaign.chunk"
+
+
+def chunk_path(out_dir, number: int) -> Path:
+    return Path(out_dir) / CHUNK_DIR / f"chunk-{number:06d}.parquet"
+
+
+def atomic_write(path, write) -> None:
+    """Call ``write(file)`` on a temporary file next to ``path``, fsync, then ``os.replace`` it onto ``path``
+    (:func:`acc_gym._io.atomic_write`; temporary files match ``.*.tmp``)."""
+    _atomic_write(path, write)
+
+
+def write_json(path, obj) -> None:
+    atomic_write(path, lambda f: f.write((json.dumps(obj, indent=1, allow_nan=False) + "\n").encode()))
+
+
+def read_json(path, what: str) -> dict:
+    path = Path(path)
+    try:
+        obj = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise CampaignError(f"{what} {path} is corrupted or truncated ({exc}); delete it (it is rewritten "
+                            f"from the chunk files) or the whole directory") from None
+    if not isinstance(obj, dict):
+        raise CampaignError(f"{what} {path} is corrupted: not a JSON object")
+    return obj
+
+
+def remove_stray_temps(out_dir) -> list[Path]:
+    """Delete temporary files a killed campaign left behind; return them."""
+    out = []
+    for folder in (Path(out_dir), Path(out_dir) / CHUNK_DIR):
+        if folder.is_dir():
+            for p in folder.glob(".*.tmp"):
+                p.unlink(missing_ok=True)
+                out.append(p)
+    return out
+
+
+def schema():
+    pa, _ = require_pyarrow()
+    return pa.schema([pa.field(name, getattr(pa, kind)(), nullable=nullable) for name, kind, nullable, _ in COLUMNS])
+
+
+def write_chunk(out_dir, chunk: Chunk, rows: list[dict], fingerprint: str) -> Path:
+    """Write a chunk's rows to its Parquet file (atomically); refuse rows that do not match the chunk."""
+    pa, pq = require_pyarrow()
+    got = [r["index"] for r in rows]
+    if got != list(chunk.indices):
+        raise CampaignError(f"chunk {chunk.number}: a worker returned rows for indices {got}, "
+                            f"expected {list(chunk.indices)}")
+    sch = schema().with_metadata({META_FINGERPRINT: fingerprint.encode(), META_CHUNK: str(chunk.number).encode()})
+    table = pa.Table.from_pylist(rows, schema=sch)
+    path = chunk_path(out_dir, chunk.number)
+    atomic_write(path, lambda f: pq.write_table(table, f))
+    return path
+
+
+def read_chunk(out_dir, chunk: Chunk, fingerprint: str):
+    """The chunk's rows as an Arrow table, after validating the file (see the module docstring)."""
+    pa, pq = require_pyarrow()
+    path = chunk_path(out_dir, chunk.number)
+    hint = "; delete it to run that chunk again"
+    try:
+        table = pq.read_table(path)
+    except FileNotFoundError:
+        raise
+    except (pa.ArrowException, OSError) as exc:
+        raise CampaignError(f"chunk file {path} is corrupted or truncated ({exc}){hint}") from None
+    meta = table.schema.metadata or {}
+    if meta.get(META_FINGERPRINT) != fingerprint.encode():
+        raise CampaignError(f"chunk file {path} belongs to another campaign (fingerprint "
+                            f"{meta.get(META_FINGERPRINT, b'none').decode()!r}, expected {fingerprint!r}){hint}")
+    if meta.get(META_CHUNK) != str(chunk.number).encode():
+        raise CampaignError(f"chunk file {path} holds chunk {meta.get(META_CHUNK, b'none').decode()}, "
+                            f"not {chunk.number}{hint}")
+    table = table.replace_schema_metadata(None)
+    if not table.schema.equals(schema()):
+        raise CampaignError(f"chunk file {path} has columns {table.schema.names}, expected {list(COLUMN_NAMES)}{hint}")
+    if table.column("index").to_pylist() != list(chunk.indices):
+        raise CampaignError(f"chunk file {path} holds {table.num_rows} rows, not one for each of scenarios "
+                            f"{chunk.start}..{chunk.stop - 1}{hint}")
+    return table
+
+
+def chunk_exists(out_dir, chunk: Chunk) -> bool:
+    return chunk_path(out_dir, chunk.number).is_file()

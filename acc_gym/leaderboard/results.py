@@ -1,0 +1,249 @@
+"""The leaderboard's results: aggregation, ranking, the files, and reading them back.
+
+Aggregation (per controller): each suite is summarised by
+:func:`acc_gym.evaluation.runner.summarise` over its episodes, plus its scheduled hours
+(the sum of its scenarios' durations) and collisions per hour (collisions / those
+hours: the same denominator for every controller, so a controller that crashes early
+is not credited with fewer hours). Over several suites, **every suite weighs the
+same**: the overall score, share qualified, share comfortable and share of safe spacing
+are the means of the suites' values (otherwise the hour of single-lane traffic, ~270
+episodes, would drown the 15 car-following tests); collisions per hour pool all hours;
+minimum TTC is the smallest and maximum jerk the largest.
+
+Ranking: controllers that finished by overall mean score (descending; ties by name),
+then the failed ones (by name, unranked, with their reasons). Nothing in the scores or
+the ranking depends on timing or on how many controllers ran in parallel.
+
+Files (all written atomically: a temporary file in the same directory, then
+``os.replace``, so a reader sees the old file or the new one, never half of one):
+
+* ``results.json`` -- ``{"format", "sha256", "results"}`` where ``sha256`` is the hash of
+  the canonical JSON of ``results``; :func:`load_results` recomputes it, so a truncated,
+  damaged or hand-edited file is refused with a ``ValueError`` naming it (and JSON
+  errors are re-raised as ``ValueError`` naming the file), never read as empty;
+* ``results.csv`` -- the ranking table, one row per controller;
+* ``leaderboard.md`` -- the same as a Markdown table;
+* ``report.html`` -- see :mod:`acc_gym.leaderboard.report`.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from acc_gym._io import atomic_write, json_safe  # noqa: F401  (re-exported)
+
+from acc_gym.evaluation.runner import summarise
+
+FORMAT = "acc_gym.leaderboard/1"
+HOUR = 3600.0
+
+
+def canonical_json(obj) -> str:
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+
+
+def checksum(results: dict) -> str:
+    return hashlib.sha256(canonical_json(results).encode("ascii")).hexdigest()
+
+
+def suite_summary(episodes: list[dict]) -> dict:
+    """One suite's summary (see the module docstring) from its episode records."""
+    s = summarise([{"score": e["score"], "qualified": e["qualified"], "metrics": e["metrics"]} for e in episodes],
+                  [e["scenario"] for e in episodes])
+    del s["scores"], s["scenarios"]  # the episode records hold them
+    hours = sum(e["duration"] for e in episodes) / HOUR
+    s["hours"] = hours
+    s["collisions_per_hour"] = s["collisions"] / hours
+    s["by_group"] = {g: float(np.mean([e["score"] for e in episodes if e["group"] == g]))
+                     for g in sorted({e["group"] for e in episodes})}
+    return s
+
+
+def overall_summary(per_suite: dict) -> dict:
+    """Every suite weighs the same (see the module docstring)."""
+    vals = list(per_suite.values())
+
+    def mean(key):
+        xs = [v[key] for v in vals if v[key] is not None]
+        return float(np.mean(xs)) if xs else None
+
+    ttc = [v["min_ttc"] for v in vals if v["min_ttc"] is not None]
+    hours = sum(v["hours"] for v in vals)
+    collisions = sum(v["collisions"] for v in vals)
+    return {"episodes": sum(v["episodes"] for v in vals), "mean_score": mean("mean_score"),
+            "share_qualified": mean("share_qualified"), "collisions": collisions, "hours": hours,
+            "collisions_per_hour": collisions / hours, "share_comfortable": mean("share_comfortable"),
+            "share_safe_spacing": mean("share_safe_spacing"), "min_ttc": min(ttc) if ttc else None,
+            "max_jerk": max(v["max_jerk"] for v in vals)}
+
+
+def summarise_controller(episodes: list[dict], suites: list[str]) -> dict:
+    per_suite = {name: suite_summary([e for e in episodes if e["suite"] == name]) for name in suites}
+    return {"overall": overall_summary(per_suite), "suites": per_suite}
+
+
+def rank(controllers: list[dict]) -> list[str]:
+    """Names in ranking order (see the module docstring); sets each entry's ``rank``."""
+    ok = sorted((c for c in controllers if c["status"] == "ok"),
+                key=lambda c: (-c["summary"]["overall"]["mean_score"], c["name"]))
+    failed = sorted((c for c in controllers if c["status"] != "ok"), key=lambda c: c["name"])
+    for k, c in enumerate(ok):
+        c["rank"] = k + 1
+    for c in failed:
+        c["rank"] = None
+    return [c["name"] for c in ok + failed]
+
+
+# -- tables ---------------------------------------------------------------------------------
+COLUMNS = ("rank", "controller", "status", "score", "qualified", "collisions_per_hour", "comfortable",
+           "safe_spacing", "min_ttc_s", "max_jerk_mps3", "episodes", "wall_time_s", "reason")
+
+
+def table_rows(results: dict) -> list[dict]:
+    """One row per controller in ranking order: the overall columns, then each suite's score."""
+    by_name = {c["name"]: c for c in results["controllers"]}
+    rows = []
+    for name in results["ranking"]:
+        c = by_name[name]
+        o = c["summary"]["overall"] if c["summary"] else None
+        row = {"rank": c["rank"], "controller": name, "status": c["status"],
+               "score": o and o["mean_score"], "qualified": o and o["share_qualified"],
+               "collisions_per_hour": o and o["collisions_per_hour"], "comfortable": o and o["share_comfortable"],
+               "safe_spacing": o and o["share_safe_spacing"], "min_ttc_s": o and o["min_ttc"],
+               "max_jerk_mps3": o and o["max_jerk"], "episodes": len(c["episodes"]),
+               "wall_time_s": c["wall_time_s"], "reason": c["reason"]}
+        for suite in results["manifest"]["suites"]:
+            s = c["summary"]["suites"][suite["name"]] if c["summary"] else None
+            row[f"score[{suite['name']}]"] = s and s["mean_score"]
+        rows.append(row)
+    return rows
+
+
+def _fmt(key: str, value) -> str:
+    if value is None:
+        return "-"
+    if key in ("qualified", "comfortable", "safe_spacing"):
+        return f"{value:.0%}"
+    if key == "wall_time_s":
+        return f"{value:.1f}"
+    if isinstance(value, float):
+        return f"{value:.2f}" if key != "score" and not key.startswith("score[") else f"{value:.1f}"
+    return str(value)
+
+
+HEADERS = {"rank": "#", "controller": "controller", "status": "status", "score": "score", "qualified": "qualified",
+           "collisions_per_hour": "collisions/h", "comfortable": "comfortable", "safe_spacing": "safe spacing",
+           "min_ttc_s": "min TTC [s]", "max_jerk_mps3": "max jerk [m/s^3]", "episodes": "episodes",
+           "wall_time_s": "time [s]"}
+
+
+def display_columns(results: dict) -> list[tuple[str, str]]:
+    """(key, header) of the printed / Markdown / HTML ranking table."""
+    cols = [(k, HEADERS[k]) for k in ("rank", "controller", "status", "score", "qualified", "collisions_per_hour",
+                                       "comfortable", "safe_spacing", "min_ttc_s", "max_jerk_mps3")]
+    suites = results["manifest"]["suites"]
+    if len(suites) > 1:
+        cols += [(f"score[{s['name']}]", s["name"]) for s in suites]
+    return cols + [("episodes", "episodes"), ("wall_time_s", "time [s]")]
+
+
+def formatted_rows(results: dict) -> tuple[list[str], list[list[str]]]:
+    cols = display_columns(results)
+    rows = [[_fmt(k, row[k]) for k, _ in cols] for row in table_rows(results)]
+    return [h for _, h in cols], rows
+
+
+def text_table(results: dict) -> str:
+    """The ranking as aligned plain text (what the CLI prints), failures listed below it."""
+    headers, rows = formatted_rows(results)
+    widths = [max(len(h), *(len(r[k]) for r in rows)) if rows else len(h) for k, h in enumerate(headers)]
+    lines = ["  ".join(h.ljust(w) for h, w in zip(headers, widths)),
+             "  ".join("-" * w for w in widths)]
+    lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    lines += [f"failed: {c['name']}: {c['reason']}" for c in results["controllers"] if c["status"] != "ok"]
+    return "\n".join(lines)
+
+
+def markdown(results: dict) -> str:
+    m = results["manifest"]
+    headers, rows = formatted_rows(results)
+    suites = ", ".join(f"`{s['name']}` (v{s['version']}, sha256 `{s['hash'][:12]}`, {s['episodes_run']} of "
+                       f"{s['episodes_defined']} episodes)" for s in m["suites"])
+
+    def esc(s: str) -> str:
+        return s.replace("|", "\\|")
+
+    lines = ["# acc_gym leaderboard", "",
+             (f"Split `{m['split']}` of {suites}; ranked by paper 003's 100-point score "
+              f"(each suite weighs the same). acc_gym {m['versions']['acc_gym']}, {m['created']}."), "",
+             "| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
+    lines += ["| " + " | ".join(esc(c) for c in r) + " |" for r in rows]
+    failed = [c for c in results["controllers"] if c["status"] != "ok"]
+    if failed:
+        lines += ["", "Failed:", ""] + [f"* `{c['name']}`: {esc(c['reason'])}" for c in failed]
+    return "\n".join(lines) + "\n"
+
+
+def csv_text(results: dict) -> str:
+    rows = table_rows(results)
+    buf = io.StringIO()
+    fields = list(rows[0]) if rows else list(COLUMNS)
+    writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: "" if v is None else v for k, v in row.items()})
+    return buf.getvalue()
+
+
+# -- results.json -----------------------------------------------------------------------------
+def results_text(results: dict) -> str:
+    doc = {"format": FORMAT, "sha256": checksum(results), "results": results}
+    return json.dumps(doc, indent=1, allow_nan=False) + "\n"
+
+
+def load_results(path) -> dict:
+    """The results of a ``results.json``, its checksum verified (``ValueError`` naming the file if not)."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / "results.json"
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"leaderboard results {str(path)!r} are corrupted (not UTF-8 text: {exc})") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"leaderboard results {str(path)!r} are truncated or corrupted (invalid JSON: {exc})") \
+            from None
+    if not isinstance(doc, dict) or set(doc) != {"format", "sha256", "results"}:
+        raise ValueError(f"leaderboard results {str(path)!r} are not an {FORMAT} file "
+                         f"(expected the keys format, sha256, results)")
+    if doc["format"] != FORMAT:
+        raise ValueError(f"leaderboard results {str(path)!r} have format {doc['format']!r}; this version reads "
+                         f"{FORMAT!r}")
+    try:
+        actual = checksum(doc["results"])
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"leaderboard results {str(path)!r} are corrupted ({exc})") from None
+    if actual != doc["sha256"]:
+        raise ValueError(f"leaderboard results {str(path)!r} are corrupted: their checksum does not match "
+                         f"(stored {str(doc['sha256'])[:12]}..., computed {actual[:12]}...)")
+    return doc["results"]
+
+
+def write_files(results: dict, out, html: str | None = None) -> dict[str, Path]:
+    """Write results.json, results.csv, leaderboard.md (and report.html) into ``out``, each atomically."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"results.json": atomic_write(out / "results.json", results_text(results)),
+             "results.csv": atomic_write(out / "results.csv", csv_text(results)),
+             "leaderboard.md": atomic_write(out / "leaderboard.md", markdown(results))}
+    if html is not None:
+        paths["report.html"] = atomic_write(out / "report.html", html)
+    return paths

@@ -1,0 +1,174 @@
+"""Score controllers on versioned suites and rank them (what ``acc-gym leaderboard`` runs).
+
+Defaults, and why:
+
+* **suites**: all four (``carfollowing-v1``, ``malicious-v1``, ``ncap-v1``,
+  ``singlelane-v1``) -- the leaderboard is about behaviour in every kind of traffic, and
+  the four together (365 episodes, 1.7 simulated hours) take a built-in controller about
+  10 s in its process (7-14 s on the development machine), so the nine built-ins finish in
+  about a minute on two cores (56 s, report included). ``episodes=N`` caps
+  each suite at its first ``N`` episodes for quick runs (the manifest records the cap,
+  and the table says how many ran).
+* **split**: ``test`` (tune on ``dev``).
+* **controllers**: every built-in of :data:`agents.controllers.BUILTINS`.
+* **workers**: 2 controllers at a time; **step budget** 1 s per ``predict`` call (a
+  hand-written law takes microseconds, a small policy network about a millisecond);
+  **total budget** 600 s per controller.
+
+Each episode is run by :func:`acc_gym.evaluation.runner.run_episode` on
+``gym.make(suite.env_id)`` with the suite's scenario and its seed, in the controller's
+own process (:mod:`acc_gym.leaderboard.isolation`); the results are aggregated and
+ranked by :mod:`acc_gym.leaderboard.results`, and, with ``out``, written there with the
+HTML report (:mod:`acc_gym.leaderboard.report`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import platform
+import sys
+import time
+from datetime import datetime, timezone
+from importlib import metadata
+
+from acc_gym.leaderboard.isolation import START_METHOD, Job, run_isolated
+from acc_gym.leaderboard.results import (
+    json_safe,
+    rank,
+    summarise_controller,
+    write_files,
+)
+
+DEFAULT_WORKERS = 2
+DEFAULT_STEP_BUDGET = 1.0  # [s]
+DEFAULT_BUDGET = 600.0  # [s]
+VERSIONED = ("acc-gym", "numpy", "gymnasium", "scipy", "numba", "matplotlib", "proxsuite", "qpsolvers", "daqp",
+             "stable-baselines3", "torch")
+
+
+def default_controllers() -> list[str]:
+    from agents.controllers import BUILTINS
+
+    return list(BUILTINS)
+
+
+def versions() -> dict:
+    """Python and the installed versions of the packages results depend on (None: not installed)."""
+    out = {"python": platform.python_version()}
+    for name in VERSIONED:
+        try:
+            out[name.replace("-", "_")] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name.replace("-", "_")] = None
+    import acc_gym
+
+    out["acc_gym"] = acc_gym.__version__
+    return out
+
+
+def _positive(name: str, value, integer: bool = False):
+    bad = isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0
+    if not bad and integer and int(value) != value:
+        bad = True
+    if bad:
+        kind = "a positive integer" if integer else "a positive number of seconds"
+        raise ValueError(f"{name} must be {kind}, got {value!r}")
+    return int(value) if integer else float(value)
+
+
+def check_controllers(controllers) -> list[str]:
+    if controllers is None:
+        return default_controllers()
+    if isinstance(controllers, str):
+        controllers = [controllers]
+    refs = list(controllers)
+    if not refs:
+        raise ValueError("controllers must name at least one controller")
+    for ref in refs:
+        if not isinstance(ref, str) or not ref:
+            raise ValueError(f"a controller must be given by reference (a built-in name, 'module:attribute' or a "
+                             f"saved model path) so that it can be loaded in its own process, got {ref!r}")
+    dup = sorted({r for r in refs if refs.count(r) > 1})
+    if dup:
+        raise ValueError(f"controller(s) {dup} given more than once")
+    return refs
+
+
+def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=None, workers: int = DEFAULT_WORKERS,
+                    step_budget: float = DEFAULT_STEP_BUDGET, budget: float = DEFAULT_BUDGET,
+                    episodes: int | None = None, report: bool = True, progress=None) -> dict:
+    """Score ``controllers`` on ``suites`` (names; default all) and rank them; returns the results dict.
+
+    ``out``: a directory to write results.json, results.csv, leaderboard.md and (with
+    ``report``) report.html into. ``progress(outcome)`` is called as each controller ends.
+    """
+    from acc_gym.suites import SPLITS, get_suite, list_suites
+    from acc_gym.suites.suite import content_digest
+
+    names = list_suites() if suites is None else ([suites] if isinstance(suites, str) else list(suites))
+    if not names:
+        raise ValueError("suites must name at least one suite")
+    if len(set(names)) != len(names):
+        raise ValueError(f"suites {names} name a suite more than once")
+    suite_objs = [get_suite(n) for n in names]  # ValueError naming an unknown one
+    if split not in SPLITS:
+        raise ValueError(f"unknown split {split!r}; use one of {list(SPLITS)}")
+    refs = check_controllers(controllers)
+    workers = _positive("workers", workers, integer=True)
+    step_budget = _positive("step_budget", step_budget)
+    budget = _positive("budget", budget)
+    if episodes is not None:
+        episodes = _positive("episodes", episodes, integer=True)
+    traces = out is not None and report
+
+    jobs, suite_info = [], []
+    for s in suite_objs:
+        built = s.episodes(split)
+        run = built if episodes is None else built[:episodes]
+        jobs += [Job(s.name, split, k, s.env_id, sc) for k, sc in enumerate(run)]
+        definition = s.to_dict()
+        suite_info.append({"name": s.name, "version": s.version, "family": s.family, "env_id": s.env_id,
+                           "split": split, "root_seed": s.root_seed(split), "hash": s.hash(split),
+                           "definition_hash": s.hash(), "content_sha256": definition["content_sha256"][split],
+                           "content_matches": content_digest(built) == definition["content_sha256"][split],
+                           "episodes_defined": len(built), "episodes_run": len(run),
+                           "hours": sum(sc.duration for sc in run) / 3600.0})
+
+    t0 = time.monotonic()
+    created = datetime.now(timezone.utc).isoformat(timespec="seconds")
+    outcomes = run_isolated(refs, jobs, workers=workers, step_budget=step_budget, budget=budget, traces=traces,
+                            progress=progress)
+    entries, trace_map = [], {}
+    for ref, o in outcomes.items():
+        notes = []
+        if o.trace is not None:
+            trace_map[ref] = o.trace
+            recorded = o.episodes[o.trace["position"]]["score"]
+            if o.trace["score"] != recorded:
+                notes.append(f"not deterministic: its worst episode scored {recorded:.3f}, then "
+                             f"{o.trace['score']:.3f} when re-run for the report")
+        entries.append({"name": ref, "reference": ref, "status": o.status, "reason": o.reason,
+                        "traceback": o.traceback, "wall_time_s": o.wall_time_s, "notes": notes,
+                        "summary": summarise_controller(o.episodes, names) if o.status == "ok" else None,
+                        "episodes": o.episodes})
+    ranking = rank(entries)
+    manifest = {
+        "format": "acc_gym.leaderboard/1", "created": created, "versions": versions(),
+        "platform": platform.platform(), "cpu_count": os.cpu_count(), "command": list(sys.argv),
+        "suites": suite_info, "split": split, "episodes_cap": episodes, "controllers": refs,
+        "settings": {"workers": workers, "step_budget_s": step_budget, "budget_s": budget,
+                     "start_method": START_METHOD},
+        "timings": {"total_wall_s": time.monotonic() - t0,
+                    "controllers_wall_s": {e["name"]: e["wall_time_s"] for e in entries}},
+    }
+    results = json_safe({"manifest": manifest, "ranking": ranking, "controllers": entries})
+    if out is not None:
+        html = None
+        if report:
+            from acc_gym.leaderboard.report import render_html
+
+            html = render_html(results, trace_map)
+        paths = write_files(results, out, html)
+        results["files"] = {k: str(v) for k, v in paths.items()}  # not in results.json (written before)
+    return results

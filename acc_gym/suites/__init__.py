@@ -1,0 +1,143 @@
+"""Versioned benchmark suites: fixed, seeded scenario lists with a public dev split and a
+test split, for tuning a controller on one and ranking it on the other.
+
+    from acc_gym.suites import get_suite, list_suites
+    list_suites()                        # ['carfollowing-v1', 'malicious-v1', 'ncap-v1', 'singlelane-v1']
+    s = get_suite("singlelane-v1")
+    s.episodes("dev")                    # the fixed list (about one hour of paper 004's traffic)
+    s.scenario(1234, "test")             # the unbounded stream, a pure function of (index, split)
+    s.hash("test")                       # what a leaderboard records to say what it ran
+
+=================  ==============================================  ====================  ==================
+suite              what                                            episodes per split    env_id
+=================  ==============================================  ====================  ==================
+carfollowing-v1    paper 003's test at 60 / 90 / 120 km/h,          15 (5 lead drivers    CarFollowing-v0
+                   each seed another human-like lead                 per speed)
+singlelane-v1      paper 004's 22 configurations by occurrence      ~1 simulated hour     SingleLane-v0
+                   rate, typical human-like MPC drivers              (~275 scenarios)
+ncap-v1            the 24 CCRs / CCRm / CCRb tests with test-track  48 (each test twice)  NCAP-v0
+                   deviations of speed and distance
+malicious-v1       malicious MPC drivers in cut-in and braking      36 (4 per config.)    SingleLane-v0
+                   configurations, plus the hard CCRb tests
+=================  ==============================================  ====================  ==================
+
+See :mod:`acc_gym.suites.generators` for what each suite's stream draws, and
+:mod:`acc_gym.suites.suite` for splits, root seeds and hashes.
+
+**Decision: the definitions ship as data.** Each suite's definition (root seeds, and per
+split the episodes as ``(id, params, seed, drivers)`` plus a digest of the built
+scenarios) is materialised in ``acc_gym/suites/data/<name>.json`` (package data), and
+:meth:`Suite.episodes` reads it from there; the generator code is still what
+:meth:`Suite.scenario` / :meth:`Suite.stream` run. Why data: a published suite must not
+move when code moves -- a refactor of a generator, a new scenario id in a family, or a
+changed registry order would otherwise silently redefine ``-v1``. With the data file the
+definition is reviewable and diffable, its hash is fixed at release, and the tests
+regenerate it from the code and check that content and hash agree (and that the episodes
+still build to the recorded content digest), so any drift is a failing test, not a
+silent change. Each file stores ``sha256`` of its definition; a file edited by hand or
+damaged is refused by name. To make a new version, add a suite with a new name and run
+``python -m acc_gym.suites.generate NAME`` (it writes the file atomically).
+"""
+
+from __future__ import annotations
+
+import json
+from functools import cache
+from pathlib import Path
+
+from acc_gym.suites import generators
+from acc_gym.suites.suite import (
+    SPLITS,
+    Suite,
+    canonical_json,
+    definition_hash,
+    derive_root_seed,
+)
+
+DATA_DIR = Path(__file__).with_name("data")
+FILE_FORMAT = "acc_gym.suite/1"
+
+
+def _templates() -> dict[str, Suite]:
+    """Every suite's code (its definition not yet loaded)."""
+    return {s.name: s for s in (
+        Suite("carfollowing-v1", 1, "carfollowing", "acc_gym/CarFollowing-v0", generators.carfollowing, count=15,
+              description="paper 003's car-following test at 60, 90 and 120 km/h, five lead drivers each"),
+        Suite("malicious-v1", 1, "malicious", "acc_gym/SingleLane-v0", generators.malicious, count=36,
+              description="malicious MPC drivers cutting in and braking hard, and the 6 m/s^2 CCRb tests"),
+        Suite("ncap-v1", 1, "ncap", "acc_gym/NCAP-v0", generators.ncap, count=48,
+              description="the Euro NCAP-style CCRs / CCRm / CCRb catalogue, each test twice with test-track "
+                          "deviations"),
+        Suite("singlelane-v1", 1, "singlelane", "acc_gym/SingleLane-v0", generators.singlelane, hours=1.0,
+              description="one hour of paper 004's single-lane traffic, configurations by occurrence rate"),
+    )}
+
+
+def list_suites() -> list[str]:
+    """The suite names, sorted."""
+    return sorted(_templates())
+
+
+def data_path(name: str) -> Path:
+    return DATA_DIR / f"{name}.json"
+
+
+def read_definition(path) -> dict:
+    """A shipped definition file's definition, its stored sha256 checked."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"suite file {str(path)!r} is not valid JSON ({exc})") from None
+    if not isinstance(doc, dict) or doc.get("format") != FILE_FORMAT or set(doc) != {"format", "sha256", "definition"}:
+        raise ValueError(f"suite file {str(path)!r} is not an {FILE_FORMAT} file")
+    if definition_hash(doc["definition"]) != doc["sha256"]:
+        raise ValueError(f"suite file {str(path)!r}: its definition does not match its sha256 (edited by hand or "
+                         f"damaged); regenerate it with: python -m acc_gym.suites.generate")
+    return doc["definition"]
+
+
+def file_text(definition: dict) -> str:
+    """The text of a definition file (one episode per line, so that diffs are readable)."""
+    head = {k: v for k, v in definition.items() if k != "episodes"}
+    lines = ['{"format": ' + json.dumps(FILE_FORMAT) + ',',
+             ' "sha256": ' + json.dumps(definition_hash(definition)) + ',',
+             ' "definition": {']
+    for key in sorted(head):
+        lines.append(f'  {json.dumps(key)}: {canonical_json(head[key])},')
+    lines.append('  "episodes": {')
+    for n, sp in enumerate(SPLITS):
+        eps = definition["episodes"][sp]
+        lines.append(f'   {json.dumps(sp)}: [')
+        lines.extend("    " + canonical_json(e) + ("," if k < len(eps) - 1 else "") for k, e in enumerate(eps))
+        lines.append("   ]" + ("," if n < len(SPLITS) - 1 else ""))
+    lines += ["  }", " }", "}", ""]
+    return "\n".join(lines)
+
+
+@cache
+def _load(name: str) -> Suite:
+    template = _templates()[name]
+    path = data_path(name)
+    if not path.exists():
+        raise ValueError(f"suite {name!r}: its definition file {str(path)!r} is missing (regenerate it with: "
+                         f"python -m acc_gym.suites.generate {name})")
+    return Suite.from_dict(read_definition(path), template)
+
+
+def get_suite(name: str) -> Suite:
+    """The suite ``name`` (its definition read from the shipped data file)."""
+    if not isinstance(name, str) or name not in _templates():
+        raise ValueError(f"unknown suite {name!r}; known: {list_suites()}")
+    return _load(name)
+
+
+def template(name: str) -> Suite:
+    """The suite ``name`` with its definition generated from the code (not the data file)."""
+    if name not in _templates():
+        raise ValueError(f"unknown suite {name!r}; known: {list_suites()}")
+    return _templates()[name]
+
+
+__all__ = ["SPLITS", "Suite", "data_path", "definition_hash", "derive_root_seed", "get_suite", "list_suites",
+           "read_definition", "template"]

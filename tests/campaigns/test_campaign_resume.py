@@ -1,0 +1,90 @@
+"""A campaign stopped part-way (max_chunks, an error, a killed process, a stray temp file) and run
+again finishes exactly the missing chunks: the same rows and summary as an uninterrupted run,
+each episode stored once."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from acc_gym.campaigns import load_campaign, run_campaign
+
+from campaign_settings import CHUNK, CONTROLLER, HOURS, SUITE
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+
+
+def _check_same(reference, out, summary):
+    _, ref_summary, ref_campaign = reference
+    campaign = load_campaign(out)
+    rows = campaign.rows()
+    assert [r["index"] for r in rows] == list(range(10))  # each episode exactly once
+    assert rows == ref_campaign.rows()
+    for key in ("episodes", "collisions", "mean_score", "share_qualified", "share_comfortable",
+                "share_safe_spacing", "speed_overshoot", "damping_ratio", "min_ttc", "max_jerk", "complete"):
+        assert summary[key] == ref_summary[key], key
+
+
+def test_max_chunks_then_resume(reference, tmp_path):
+    ran = []
+    partial = run_campaign(SUITE, HOURS, CONTROLLER, tmp_path, chunk_size=CHUNK, max_chunks=1,
+                           on_chunk=lambda n, done, total: ran.append((n, done, total)))
+    assert ran == [(0, 1, 4)]
+    assert not partial["complete"] and partial["episodes"] == 3 and partial["chunks_done"] == 1
+    assert load_campaign(tmp_path).missing_chunks()[0].number == 1
+    ran.clear()
+    summary = run_campaign(SUITE, HOURS, CONTROLLER, tmp_path, chunk_size=CHUNK,
+                           on_chunk=lambda n, done, total: ran.append(n))
+    assert sorted(ran) == [1, 2, 3]  # chunk 0 was not run again
+    _check_same(reference, tmp_path, summary)
+    ran.clear()
+    again = run_campaign(SUITE, HOURS, CONTROLLER, tmp_path, chunk_size=CHUNK, on_chunk=lambda *a: ran.append(a))
+    assert ran == [] and again == summary  # a finished campaign runs nothing
+
+
+class Crash(Exception):
+    pass
+
+
+def test_crash_in_a_pool_and_a_stray_temp_file_then_resume(reference, tmp_path):
+    def crash_after_two(number, done, total):
+        if done == 2:
+            raise Crash
+    with pytest.raises(Crash):
+        run_campaign(SUITE, HOURS, CONTROLLER, tmp_path, chunk_size=CHUNK, workers=2, on_chunk=crash_after_two)
+    chunk_dir = tmp_path / "chunks"
+    assert len(list(chunk_dir.glob("chunk-*.parquet"))) == 2
+    assert not (tmp_path / "summary.json").exists()
+    stray = chunk_dir / ".chunk-000003.parquet.999.dead.tmp"  # what a write killed mid-way leaves
+    stray.write_bytes(b"PAR1 half a file")
+    summary = run_campaign(SUITE, HOURS, CONTROLLER, tmp_path, chunk_size=CHUNK, workers=1)
+    assert not stray.exists()
+    _check_same(reference, tmp_path, summary)
+
+
+def test_killed_process_resumes(reference, tmp_path):
+    """SIGKILL a real ``acc-gym campaign`` process once its first chunk file exists, then resume."""
+    out = tmp_path / "killed"
+    controller = "campaign_slow_controller:SlowACC"  # the linear ACC, slowed down by ACC_GYM_TEST_SLOW
+    env = {**os.environ, "ACC_GYM_TEST_SLOW": "0.004",
+           "PYTHONPATH": os.pathsep.join([str(HERE), str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.Popen([sys.executable, "-m", "acc_gym.cli", "campaign", "--suite", SUITE, "--hours", str(HOURS),
+                             "--controller", controller, "--out", str(out), "--chunk-size", str(CHUNK),
+                             "--workers", "1"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 60
+    first = out / "chunks" / "chunk-000000.parquet"
+    while not first.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert proc.returncode == -signal.SIGKILL, proc.stderr.read().decode()
+    done = sorted(p.name for p in (out / "chunks").glob("chunk-*.parquet"))
+    assert 1 <= len(done) < 4, done
+    summary = run_campaign(SUITE, HOURS, controller, out, chunk_size=CHUNK, workers=1)  # not slowed here
+    _check_same(reference, out, summary)
+    assert summary["controller"] == controller
