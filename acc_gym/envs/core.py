@@ -194,7 +194,7 @@ class EpisodeBatch:
 
     def _final(self, row: int) -> dict:
         k = int(self.world.k[row])
-        rec = {key: self._rec[key][row, :k + 1].copy() for key in _RECORD}
+        rec = dict(zip(_RECORD, self._rec_arr[:, row, :k + 1].copy()))
         sc = self.scenarios[row]
         trace = EgoTrace(**rec, set_speed=sc.set_speed, time_gap=sc.time_gap)
         report = score_episode(trace, self.config.scoring)

@@ -128,7 +128,9 @@ class ScoringConfig:
         return cls(**{"safety": "literal", "band": "literal", "clip": False, **changes})
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        if "_as_dict" not in self.__dict__:  # frozen: made once (every scored episode reports it)
+            object.__setattr__(self, "_as_dict", asdict(self))
+        return dict(self._as_dict)
 
     @classmethod
     def from_dict(cls, d: dict) -> "ScoringConfig":
