@@ -215,6 +215,8 @@ def main(argv=None) -> int:
     p_tr.add_argument("--residual-scale", type=float, default=0.3, help="scale of the residual action")
     p_tr.add_argument("--residual-kwargs", default=None,
                       help='JSON settings of the base controller, e.g. \'{"k1": 0.8, "s0": 0.5}\'')
+    p_tr.add_argument("--max-overspeed", type=float, default=None,
+                      help="with --residual: cap the speed at the set speed plus this [m/s]")
     p_tr.add_argument("--shield", action="store_true",
                       help="with --residual: brake >= 2.5 m/s^2 whenever the observed Q = gap - Gapsafe < 0")
     p_tr.add_argument("--score-bonus", type=float, default=0.0,
@@ -284,6 +286,7 @@ def main(argv=None) -> int:
                         args.eval_episodes, progress=not args.no_progress, algo_kwargs=algo_kwargs,
                         residual=args.residual, residual_scale=args.residual_scale, shield=args.shield,
                         residual_kwargs=json.loads(args.residual_kwargs) if args.residual_kwargs else None,
+                        max_overspeed=args.max_overspeed,
                         score_bonus=args.score_bonus,
                         mix=mix, **env_settings)
         except (ValueError, TypeError) as exc:

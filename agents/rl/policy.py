@@ -26,15 +26,17 @@ class SB3Policy:
 
     def __init__(self, model, mean: np.ndarray, var: np.ndarray, clip: float = 10.0, eps: float = 1e-8,
                  residual: str | None = None, residual_scale: float | None = None, shield: bool = False,
-                 residual_kwargs: dict | None = None):
+                 residual_kwargs: dict | None = None, max_overspeed: float | None = None):
         self.model, self.mean, self.var, self.clip, self.eps = model, mean, var, clip, eps
         self.residual, self.residual_scale, self.base, self.shield = residual, residual_scale, None, bool(shield)
-        if shield and residual is None:
-            raise ValueError("the proper-response shield is an option of residual policies")
+        self.max_overspeed = None
+        if (shield or max_overspeed is not None or residual_kwargs) and residual is None:
+            raise ValueError("shield, max_overspeed and residual_kwargs are options of residual policies")
         if residual is not None:
-            from agents.rl.residual import check_scale, make_base
+            from agents.rl.residual import check_overspeed, check_scale, make_base
 
             self.base = make_base(residual, residual_kwargs)
+            self.max_overspeed = check_overspeed(max_overspeed)
             self.residual_scale = check_scale(residual_scale)
 
     def reset(self) -> None:
@@ -49,7 +51,7 @@ class SB3Policy:
         if self.base is not None:
             from agents.rl.residual import controller_action
 
-            action = controller_action(obs, action, self.base, self.residual_scale, self.shield)
+            action = controller_action(obs, action, self.base, self.residual_scale, self.shield, self.max_overspeed)
         return action, None
 
 
@@ -75,4 +77,5 @@ def load_policy(path) -> SB3Policy:
     residual = manifest.get("residual")
     return SB3Policy(model, rms["mean"], rms["var"], float(rms["clip"]), residual=residual,
                      residual_scale=manifest.get("residual_scale") if residual is not None else None,
-                     shield=bool(manifest.get("shield", False)), residual_kwargs=manifest.get("residual_kwargs"))
+                     shield=bool(manifest.get("shield", False)), residual_kwargs=manifest.get("residual_kwargs"),
+                     max_overspeed=manifest.get("max_overspeed"))

@@ -9,12 +9,16 @@ it (with a small initial action noise, e.g. PPO's ``log_std_init=-2``). With
 ``Q = gap - Gapsafe`` is negative (:func:`proper_response_shield`): the proper response
 that the score's safety item asks for, which a reward-driven policy otherwise trades
 for efficiency (it learns to follow closer and fails the item when the lead brakes).
+``max_overspeed`` caps the desired acceleration at ``v_set + max_overspeed - v`` per
+second (:func:`speed_cap`): without it a policy learns to drive above the set speed to
+close gaps to slightly faster leads (the score does not charge it).
 
 :class:`ResidualVecEnv` applies it during training; it sits directly on
 :class:`agents.rl.vec_env.SB3VecEnv`, *below* ``VecNormalize``, so it sees raw
 observations. :class:`agents.rl.policy.SB3Policy` applies the same function at inference
-(the run's manifest records ``residual`` and ``residual_scale``), so a saved residual run
-is an ordinary controller for ``acc-gym evaluate``.
+(the run's manifest records ``residual``, ``residual_kwargs``, ``residual_scale``,
+``shield`` and ``max_overspeed``), so a saved residual run is an ordinary controller for
+``acc-gym evaluate``.
 
 :class:`ScoreBonusVecEnv` (optional) adds ``bonus * score / 100`` to the reward of an
 episode's last step: the 100-point score itself, which the per-step reward only
@@ -80,10 +84,36 @@ def proper_response_shield(obs, action, decel_max: float = 8.0, decel: float = S
     return np.where(on.reshape((-1,) + (1,) * (a.ndim - 1)), np.minimum(a, cap), a).astype(np.float32)
 
 
-def controller_action(obs, rl_action, base, scale: float, shield: bool = False) -> np.ndarray:
-    """The executed action of a residual policy on raw ``obs`` (a batch or one observation)."""
+SPEED_GAIN = 1.0  # [1/s] of the set-speed cap
+
+
+def speed_cap(obs, action, max_overspeed: float, accel_max: float = 3.0, decel_max: float = 8.0) -> np.ndarray:
+    """Cap the desired acceleration at ``SPEED_GAIN (v_set + max_overspeed - v)``: the ego does not
+    drive (much) faster than its set speed plus ``max_overspeed``, whatever the learnt part wants."""
+    o = np.atleast_2d(np.asarray(obs, dtype=np.float64))
+    a = np.asarray(action, dtype=np.float32)
+    a_cap = SPEED_GAIN * (o[:, 5] + float(max_overspeed) - o[:, 0])  # [m/s^2]
+    cap = np.where(a_cap >= 0, a_cap / accel_max, a_cap / decel_max).reshape((-1,) + (1,) * (a.ndim - 1))
+    return np.minimum(a, np.clip(cap, -1.0, 1.0)).astype(np.float32)
+
+
+def check_overspeed(max_overspeed):
+    if max_overspeed is None:
+        return None
+    if isinstance(max_overspeed, bool) or not isinstance(max_overspeed, (int, float)) or not (
+            np.isfinite(max_overspeed) and max_overspeed >= 0):
+        raise ValueError(f"max_overspeed must be a number >= 0 or None, got {max_overspeed!r}")
+    return float(max_overspeed)
+
+
+def controller_action(obs, rl_action, base, scale: float, shield: bool = False,
+                      max_overspeed: float | None = None) -> np.ndarray:
+    """The executed action of a residual policy on raw ``obs`` (a batch or one observation): the base plus
+    the scaled residual, then the set-speed cap (``max_overspeed`` not None), then the shield (``shield``)."""
     base_action, _ = base.predict(obs)
     action = residual_action(base_action, np.asarray(rl_action).reshape(np.shape(base_action)), scale)
+    if max_overspeed is not None:
+        action = speed_cap(obs, action, max_overspeed)
     return proper_response_shield(obs, action) if shield else action
 
 
@@ -91,12 +121,13 @@ class ResidualVecEnv(VecEnvWrapper):
     """Execute ``controller_action(raw_obs, action, base, scale, shield)`` on the wrapped (raw) vector env."""
 
     def __init__(self, venv, base: str = "acc", scale: float = 0.3, shield: bool = False,
-                 base_kwargs: dict | None = None):
+                 base_kwargs: dict | None = None, max_overspeed: float | None = None):
         super().__init__(venv)
         self.base_name = base
         self.base = make_base(base, base_kwargs)
         self.scale = check_scale(scale)
         self.shield = bool(shield)
+        self.max_overspeed = check_overspeed(max_overspeed)
         self._obs: np.ndarray | None = None
 
     def reset(self):
@@ -111,7 +142,7 @@ class ResidualVecEnv(VecEnvWrapper):
         if self._obs is None:
             raise RuntimeError("ResidualVecEnv: reset() before step()")
         rl = np.asarray(actions, dtype=np.float32).reshape(self.num_envs, -1)
-        self.venv.step_async(controller_action(self._obs, rl, self.base, self.scale, self.shield))
+        self.venv.step_async(controller_action(self._obs, rl, self.base, self.scale, self.shield, self.max_overspeed))
 
     def step_wait(self):
         obs, reward, done, infos = self.venv.step_wait()

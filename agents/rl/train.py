@@ -27,28 +27,19 @@ from pathlib import Path
 
 import numpy as np
 
+from acc_gym._io import atomic_write
 from agents.rl.policy import ALGOS, MANIFEST_FILE, MODEL_FILE, RMS_FILE, SB3Policy
 
 EVAL_SEED_OFFSET = 1_000_003
 
 
 def _atomic_write(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_write(path, data)
 
 
 def _save_rms(path: Path, vecnorm) -> None:
     rms = vecnorm.obs_rms
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".npz")
-    os.close(fd)
-    np.savez(tmp, mean=rms.mean, var=rms.var, clip=vecnorm.clip_obs)
-    os.replace(tmp, path)
+    atomic_write(path, lambda fh: np.savez(fh, mean=rms.mean, var=rms.var, clip=vecnorm.clip_obs))
 
 
 def _save_model(model, path: Path) -> None:
@@ -90,14 +81,15 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
           out: str | os.PathLike = "runs/acc", num_envs: int = 8, eval_freq: int | None = None,
           eval_episodes: int = 5, progress: bool = False, algo_kwargs: dict | None = None,
           residual: str | None = None, residual_scale: float = 0.3, shield: bool = False,
-          residual_kwargs: dict | None = None, score_bonus: float = 0.0,
+          residual_kwargs: dict | None = None, max_overspeed: float | None = None, score_bonus: float = 0.0,
           mix: dict | None = None, **env_settings) -> Path:
     """Train ``algo`` (``ppo``, ``sac``, ``td3``) and write the run directory; returns its path.
 
     ``residual``: a base controller name (:data:`agents.rl.residual.BASES`, its settings
     ``residual_kwargs``) to learn a correction of, scaled by ``residual_scale``; ``shield``:
     cap the action at a firm brake while the observed Q < 0
-    (:func:`agents.rl.residual.proper_response_shield`); ``score_bonus``: weight of the
+    (:func:`agents.rl.residual.proper_response_shield`); ``max_overspeed``: cap the speed at the
+    set speed plus this (:func:`agents.rl.residual.speed_cap`); ``score_bonus``: weight of the
     episode's 100-point score (/100) added to its last reward; ``mix``: scenario families (or
     ids) and their shares (:func:`mix_settings`), instead of ``scenarios`` / ``weights``."""
     import gymnasium as gym
@@ -127,11 +119,12 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
         from agents.rl.residual import ResidualVecEnv, check_scale
 
         residual_scale = check_scale(residual_scale)
-        raw = ResidualVecEnv(raw, residual, residual_scale, shield, residual_kwargs)  # below VecNormalize: raw obs
+        raw = ResidualVecEnv(raw, residual, residual_scale, shield, residual_kwargs,  # below VecNormalize: raw obs
+                             max_overspeed)
     elif shield:
         raise ValueError("shield=True needs a residual base controller (residual='acc')")
-    if residual_kwargs and residual is None:
-        raise ValueError("residual_kwargs needs a residual base controller (residual='acc')")
+    if (residual_kwargs or max_overspeed is not None) and residual is None:
+        raise ValueError("residual_kwargs and max_overspeed need a residual base controller (residual='acc')")
     if score_bonus:
         from agents.rl.residual import ScoreBonusVecEnv
 
@@ -146,7 +139,7 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
         rms = venv.obs_rms
         policy = SB3Policy(model, rms.mean.copy(), rms.var.copy(), venv.clip_obs, residual=residual,
                            residual_scale=residual_scale if residual is not None else None, shield=shield,
-                           residual_kwargs=residual_kwargs)
+                           residual_kwargs=residual_kwargs, max_overspeed=max_overspeed)
         summary = evaluate(policy, env_id, episodes=eval_episodes, seed=int(seed) + EVAL_SEED_OFFSET, **env_settings)
         entry = {"timesteps": step, "mean_score": summary["mean_score"], "share_qualified": summary["share_qualified"],
                  "collisions": summary["collisions"]}
@@ -158,7 +151,8 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
         ck_manifest = {"algo": algo, "env_id": env_id, "timesteps": step, "seed": int(seed), "checkpoint": True,
                        "evaluation": entry, "residual": residual,
                        "residual_scale": float(residual_scale) if residual is not None else None,
-                       "shield": bool(shield), "residual_kwargs": residual_kwargs or None}
+                       "shield": bool(shield), "residual_kwargs": residual_kwargs or None,
+                       "max_overspeed": max_overspeed}
         _atomic_write(ck / MANIFEST_FILE, json.dumps(ck_manifest, indent=1).encode())  # loadable on its own
         _atomic_write(out / "evaluations.json", json.dumps(evaluations, indent=1).encode())
         return entry
@@ -178,7 +172,10 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
     model.learn(total_timesteps=int(timesteps), callback=EvalCallback(), progress_bar=progress)
     wall = time.time() - t0
     done_at = int(model.num_timesteps)
-    final = evaluations[-1] if evaluations and evaluations[-1]["timesteps"] == done_at else run_eval(done_at)
+    if evaluations and evaluations[-1]["timesteps"] == done_at:
+        # the callback ran before the last update (rollout collection comes first): score the final model
+        evaluations.pop()
+    final = run_eval(done_at)
     _save_model(model, out / MODEL_FILE)
     _save_rms(out / RMS_FILE, venv)
     manifest = {"algo": algo, "env_id": env_id, "env_settings": {k: (list(v) if isinstance(v, tuple) else v)
@@ -188,7 +185,7 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
                 "final_evaluation": final, "train_wall_time_s": wall, "versions": _versions(),
                 "algo_kwargs": algo_kwargs or {}, "residual": residual,
                 "residual_scale": float(residual_scale) if residual is not None else None,
-                "shield": bool(shield), "residual_kwargs": residual_kwargs or None,
+                "shield": bool(shield), "residual_kwargs": residual_kwargs or None, "max_overspeed": max_overspeed,
                 "score_bonus": float(score_bonus), "mix": dict(mix) if mix else None}
     _atomic_write(out / MANIFEST_FILE, json.dumps(manifest, indent=1, default=str).encode())
     venv.close()

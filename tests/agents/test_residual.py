@@ -9,8 +9,15 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
 from acc_gym.evaluation.runner import evaluate, load_controller
 from agents.controllers import LinearACC
 from agents.rl.policy import SB3Policy, load_policy
-from agents.rl.residual import (ResidualVecEnv, ScoreBonusVecEnv, controller_action, make_base,
-                                proper_response_shield, residual_action)
+from agents.rl.residual import (
+    ResidualVecEnv,
+    ScoreBonusVecEnv,
+    controller_action,
+    make_base,
+    proper_response_shield,
+    residual_action,
+    speed_cap,
+)
 from agents.rl.train import mix_settings, train
 from agents.rl.vec_env import SB3VecEnv
 
@@ -77,6 +84,16 @@ def test_shield_brakes_firmly_while_q_is_negative_and_otherwise_leaves_the_actio
     assert single.shape == (1,) and single[0] <= -2.5 / 8.0
 
 
+def test_speed_cap_keeps_the_ego_near_its_set_speed():
+    obs = np.array([[20.0, 0.0, 200.0, 0.0, 0.0, 20.0, 1.5],   # at the set speed: no acceleration
+                    [18.0, 0.0, 200.0, 0.0, 0.0, 20.0, 1.5],   # 2 m/s below: up to 2 m/s^2
+                    [22.0, 0.0, 200.0, 0.0, 0.0, 20.0, 1.5]], np.float32)  # 2 m/s above: brake 2 m/s^2
+    out = speed_cap(obs, np.ones((3, 1), np.float32), 0.0)
+    np.testing.assert_allclose(out[:, 0], [0.0, 2.0 / 3.0, -2.0 / 8.0], atol=1e-6)
+    np.testing.assert_allclose(speed_cap(obs, np.full((3, 1), -0.5, np.float32), 1.0)[:, 0], -0.5)  # braking stays
+    assert controller_action(obs[2], np.ones(1, np.float32), LinearACC(), 0.5, max_overspeed=0.0)[0] < 0
+
+
 def test_score_bonus_is_added_at_episode_ends_only():
     def rollout(bonus):
         venv = SB3VecEnv(2, seed=4, scenarios=("ncap/ccrs/20",))  # full throttle: a collision, score 0-45
@@ -110,26 +127,30 @@ def test_mix_weights_families_by_share():
 
 def test_a_saved_residual_run_reloads_and_scores_as_the_in_memory_policy(tmp_path):
     run = train("ppo", "acc_gym/NCAP-v0", timesteps=256, seed=3, out=tmp_path / "res", num_envs=4, eval_episodes=3,
-                residual="acc", residual_scale=0.3, shield=True, score_bonus=10.0,
+                residual="acc", residual_scale=0.3, shield=True, score_bonus=10.0, residual_kwargs={"k1": 0.5},
+                max_overspeed=1.0,
                 algo_kwargs={"n_steps": 64, "batch_size": 64, "policy_kwargs": {"log_std_init": -2.0}})
     manifest = json.loads((run / "manifest.json").read_text())
     assert (manifest["residual"], manifest["residual_scale"], manifest["shield"], manifest["score_bonus"]) == (
         "acc", 0.3, True, 10.0)
+    assert manifest["residual_kwargs"] == {"k1": 0.5} and manifest["max_overspeed"] == 1.0
     policy = load_policy(run)
     assert isinstance(load_controller(str(run)), SB3Policy)
     assert policy.residual == "acc" and policy.residual_scale == 0.3 and policy.shield
+    assert policy.base.k1 == 0.5 and policy.max_overspeed == 1.0
     # the saved run scores exactly what the in-memory model scored at the end of training
     final = manifest["final_evaluation"]
     again = evaluate(str(run), "acc_gym/NCAP-v0", episodes=3, seed=manifest["eval_seed"])
     assert (again["mean_score"], again["share_qualified"], again["collisions"]) == (
         final["mean_score"], final["share_qualified"], final["collisions"])
     # and a checkpoint directory is a controller too
-    ck = sorted((run / "checkpoints").iterdir())[-1]
+    ck = max((run / "checkpoints").iterdir())
     assert load_policy(ck).residual == "acc"
     # the executed action is the linear ACC plus the scaled model action (then the shield)
     obs = np.array([25.0, 0.0, 60.0, -1.0, 1.0, 30.0, 1.5], np.float32)
     raw, _ = policy.model.predict(policy.normalise(obs), deterministic=True)
-    expected = np.clip(LinearACC().predict(obs)[0] + 0.3 * np.clip(raw, -1, 1), -1, 1)
+    expected = np.clip(LinearACC(k1=0.5).predict(obs)[0] + 0.3 * np.clip(raw, -1, 1), -1, 1)
+    expected = np.minimum(expected, (30.0 + 1.0 - 25.0) / 3.0)  # the speed cap (not binding here)
     np.testing.assert_allclose(policy.predict(obs)[0], expected, atol=1e-6)
 
 
