@@ -41,3 +41,32 @@ def test_summary_json_is_the_returned_summary(reference):
 
     out, summary, _ = reference
     assert load_summary(out) == summary
+
+
+def test_ranking_of_controllers_is_the_same_on_every_backend(reference, tmp_path):
+    """Two controllers ranked by their campaigns' mean score: one worker, a two-process pool and a
+    Dask LocalCluster give the same order and the same numbers (the ranking is backend-free)."""
+    distributed = pytest.importorskip("distributed")
+
+    def ranking(**backend):
+        out = {}
+        for controller in ("acc", "constant"):
+            summary = run_campaign(SUITE, HOURS, controller, tmp_path / f"{controller}-{len(list(tmp_path.iterdir()))}",
+                                   chunk_size=CHUNK, **backend)
+            out[controller] = summary
+        order = sorted(out, key=lambda c: -_mean_score(out[c]))
+        return order, out
+
+    one = ranking(workers=1)
+    pool = ranking(workers=2)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp", host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        dask = ranking(scheduler=cluster.scheduler_address)
+    assert one == pool == dask
+    assert one[0] == ["acc", "constant"]  # the linear ACC beats the constant-speed floor on NCAP
+    assert _mean_score(one[1]["acc"]) > _mean_score(one[1]["constant"])
+
+
+def _mean_score(summary: dict) -> float:
+    value = summary["mean_score"]  # {"estimate", "low", "high", "n"}
+    return value["estimate"]
