@@ -185,7 +185,8 @@ class MPCDriverParams:
                 and d["jerk_emergency"] >= d["jerk_max"] and (v_max is None or v_max >= d["v_desired"]))
 
     def _arrays_valid(self) -> bool:
-        """True when every field is a float array of one shape and every check passes, tested on
+        """True when every field is a float array of one shape (or a plain number, broadcast to
+        it: a sampled batch leaves ``r_jerk`` at its default) and every check passes, tested on
         one stacked array (a failure falls through to the field-by-field checks and their messages)."""
         d = self.__dict__
         first = d["a_max"]
@@ -197,7 +198,9 @@ class MPCDriverParams:
             value = d[name]
             if value is None:
                 continue
-            if type(value) is not np.ndarray or value.shape != shape or value.dtype != np.float64:
+            if type(value) in (float, int):
+                value = np.full(shape, float(value))
+            elif type(value) is not np.ndarray or value.shape != shape or value.dtype != np.float64:
                 return False
             cols.append(value)
         a = np.stack(cols)
@@ -387,8 +390,7 @@ class MPCDriver:
         self._H = np.ascontiguousarray(np.stack([np.stack([f.hinv_sums, c.hinv_sums])
                                                  for f, c in zip(self._qp_follow, self._qp_cruise)]))
         # running row sums of the lead-acceleration gains (the predicted sequence is piecewise constant)
-        self._GL = (np.ascontiguousarray(np.stack([np.concatenate([np.zeros((N, 1)), np.cumsum(q.gain_lead, axis=1)], axis=1)
-                                                   for q in self._qp_follow]))
+        self._GL = (np.ascontiguousarray(np.stack([q.gain_lead_sums for q in self._qp_follow]))
                     if s.use_lead_accel else np.zeros((n, 1, 1)))
         self._B = np.zeros((n, 2, self.horizon.n_bounds))
         self._lower, self._upper = self._B[:, 0], self._B[:, 1]
@@ -437,7 +439,8 @@ class MPCDriver:
         if cur.v_max is None and params.v_max is not None:
             object.__setattr__(cur, "v_max", np.array(cur.speed_limit, dtype=float))
         values = params.__dict__
-        if idx.size == 1 and all(values[name] is None or np.ndim(values[name]) == 0 for name in _FIELD_NAMES):
+        if idx.size == 1 and all(values[name] is None or type(values[name]) is float or np.ndim(values[name]) == 0
+                                 for name in _FIELD_NAMES):
             i = int(idx[0])  # one driver, plain numbers: no broadcast copies (resets are hot)
             limit = values["v_desired"] if values["v_max"] is None else values["v_max"]
             for name in _FIELD_NAMES:
@@ -460,7 +463,6 @@ class MPCDriver:
                          for c in _PARAM_COLUMNS], axis=1)
         self._P[idx, :cols.shape[1]] = cols
         self._P[idx, -2 * alpha.shape[1]:] = np.concatenate([alpha, beta], axis=1)
-        N = self.horizon.n_steps
         for i in idx.tolist():
             qf = condensed_qp(float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]), self.horizon,
                               s.slack_linear, s.slack_quadratic, float(p.r_jerk[i]))
@@ -469,9 +471,10 @@ class MPCDriver:
             self._qp_follow[i], self._qp_cruise[i] = qf, qc
             self._gain_f[i] = qf.gain
             self._gain_c[i] = qc.gain[:, 1:]
-            self._H[i] = np.stack([qf.hinv_sums, qc.hinv_sums])
+            self._H[i, 0] = qf.hinv_sums
+            self._H[i, 1] = qc.hinv_sums
             if s.use_lead_accel:
-                self._GL[i] = np.concatenate([np.zeros((N, 1)), np.cumsum(qf.gain_lead, axis=1)], axis=1)
+                self._GL[i] = qf.gain_lead_sums
             for key in [k for k in self._backends if k[0] == i]:
                 del self._backends[key]
                 self._last_used.pop(key, None)

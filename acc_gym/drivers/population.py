@@ -96,6 +96,7 @@ Q1N_RANGE = (0.04, 1.2)  # speed-normalised distance weight, log-uniform (see mo
 Q1_SPEED_REF = 20.0  # [m/s]
 Q1_SPEED_EXPONENT = 2.5
 KINDS = ("typical", "atypical", "malicious")
+_DEFAULT_VEHICLE = VehicleParams()  # frozen: shared by every draw that is not given a vehicle
 
 
 def speed_band(speed) -> np.ndarray:
@@ -142,7 +143,7 @@ def sample_drivers(rng: np.random.Generator, n: int, speed, kind: str = "typical
     band = speed_band(speed)
     if np.any(speed <= 0):
         raise ValueError(f"speeds must be > 0 (they are the drivers' desired speeds), got {speed.min()!r}")
-    vehicle = vehicle if vehicle is not None else VehicleParams()
+    vehicle = vehicle if vehicle is not None else _DEFAULT_VEHICLE
 
     a_max = np.empty(n)
     a_min = np.empty(n)

@@ -5,8 +5,9 @@ per-sample definitions the 100-point score uses (:mod:`acc_gym.evaluation.scorin
 Gapsafe and Q, the band, car-following and free samples, ``u_t``, the proper-response
 safety check and a collision. On a few scenes that is dozens of tiny numpy operations
 per step; :func:`criteria` does them in one pass, :func:`criteria_reward` weighs them as
-the default :class:`~acc_gym.envs.reward.CriteriaReward`, and :func:`record` writes the
-step into the episode records. ``tests/envs/test_env_kernel.py`` checks them against the
+the default :class:`~acc_gym.envs.reward.CriteriaReward`, :func:`settle` ends the step
+(termination, truncation, returns, the scenes whose episode ended), :func:`record` writes
+the step into the episode records and :func:`action_to_accel` maps the actions. ``tests/envs/test_env_kernel.py`` checks them against the
 numpy formulations kept in :mod:`acc_gym.envs.reward` and the scoring module.
 """
 
@@ -36,11 +37,11 @@ def criteria(t, v, a, lead_all, gap_all, a_prev, dt, set_speed, tau1, grace, cfg
 
     ``v``, ``a`` ``(n, S)`` and ``lead_all``, ``gap_all`` the world's neighbours; ``cfg`` the
     scoring constants ``(b0, b1, band_width, steady_dv, moving_speed, transient,
-    sensor_range, response_decel, stop_speed)``. Updates ``lead_prev``, ``last_change``
+    sensor_range, response_decel, stop_speed, lead_margin)``. Updates ``lead_prev``, ``last_change``
     and ``neg_since`` in place; writes ``fl`` (:data:`N_FLOAT`, n) and ``bo`` (:data:`N_BOOL`, n).
     """
-    b0, b1, bw, steady_dv, moving, transient, sensor, resp_decel, stop_speed = (
-        cfg[0], cfg[1], cfg[2], cfg[3], cfg[4], cfg[5], cfg[6], cfg[7], cfg[8])
+    b0, b1, bw, steady_dv, moving, transient, sensor, resp_decel, stop_speed, lead_margin = (
+        cfg[0], cfg[1], cfg[2], cfg[3], cfg[4], cfg[5], cfg[6], cfg[7], cfg[8], cfg[9])
     n = v.shape[0]
     for i in range(n):
         ti = t[i]
@@ -65,7 +66,7 @@ def criteria(t, v, a, lead_all, gap_all, a_prev, dt, set_speed, tau1, grace, cfg
         fl[F_Q, i] = q
         bo[B_HAS, i] = has
         bo[B_IN_BAND, i] = has and gs > 0 and q > 0 and q < bw * gs
-        too_fast = v0 > set_speed[i] + steady_dv
+        too_fast = v0 > set_speed[i] + lead_margin
         followable = has and v0 > moving and not too_fast
         bo[B_FOLLOWABLE, i] = followable
         settled = ti - last_change[i] >= transient
@@ -117,6 +118,42 @@ def criteria_reward(v, a, jerk, gap, u, v_lead, set_speed, tau1, following, in_b
         for k in range(terms.shape[0]):
             total += terms[k, i]
         reward[i] = total
+
+
+@numba.njit(cache=True, error_model="numpy")
+def criteria_reward_rows(fl, bo, set_speed, tau1, a_comfort, w, terms, reward):  # pragma: no cover - compiled
+    """:func:`criteria_reward` on the rows of :func:`criteria`'s outputs ``fl`` and ``bo``
+    (sliced here, where a slice costs nothing, rather than as a dozen numpy views)."""
+    criteria_reward(fl[F_V], fl[F_A], fl[F_JERK], fl[F_GAP], fl[F_U], fl[F_VLEAD], set_speed, tau1,
+                    bo[B_FOLLOWING], bo[B_IN_BAND], bo[B_FREE], bo[B_VIOLATION], bo[B_COLLISION], bo[B_FOLLOWABLE],
+                    a_comfort, w, terms, reward)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def settle(active, reward, bo, k, steps, terminate_on_violation, episode_return, terminated, truncated, rows,
+           ended):  # pragma: no cover - compiled
+    """The end of a step for every scene, from :func:`criteria`'s boolean output ``bo``.
+
+    Writes ``terminated`` (a collision, or a violation with ``terminate_on_violation``) and
+    ``truncated`` (the step budget ``steps`` reached at step ``k``, not terminated); adds
+    ``reward`` to ``episode_return`` of the ``active`` scenes; lists the active scenes in
+    ``rows`` and those of them whose episode ended in ``ended``. Returns both counts.
+    """
+    n_rows = 0
+    n_ended = 0
+    for i in range(active.shape[0]):
+        term = bo[B_COLLISION, i] or (bo[B_VIOLATION, i] and terminate_on_violation)
+        trunc = k[i] >= steps[i] and not term
+        terminated[i] = term
+        truncated[i] = trunc
+        if active[i]:
+            rows[n_rows] = i
+            n_rows += 1
+            episode_return[i] += reward[i]
+            if term or trunc:
+                ended[n_ended] = i
+                n_ended += 1
+    return n_rows, n_ended
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -173,3 +210,13 @@ def observe(o, set_speed, time_gap, sensor_range, v2v, low, high, out):  # pragm
             row[10] = 1.0 if seen2 else 0.0
         for j in range(m):
             out[i, j] = min(max(row[j], low[j]), high[j])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def action_to_accel(action, accel_max, decel_max, out):  # pragma: no cover - compiled
+    """Actions ``(n,)`` to desired accelerations in ``out``: clipped to [-1, 1], then ``a * accel_max``
+    for ``a >= 0`` and ``a * decel_max`` below -- :func:`acc_gym.envs.acc_env.action_to_accel`'s
+    numpy formulation (its reference) for finite actions, in one call instead of four."""
+    for i in range(action.shape[0]):
+        a = min(max(action[i], -1.0), 1.0)
+        out[i] = a * accel_max if a >= 0 else a * decel_max

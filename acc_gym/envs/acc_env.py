@@ -6,6 +6,7 @@ import numpy as np
 import gymnasium as gym
 from gymnasium import spaces
 
+from acc_gym.envs import _kernel as _K
 from acc_gym.envs.config import EnvConfig, ScenarioSampler
 from acc_gym.envs.core import EpisodeBatch
 from acc_gym.envs.reward import CriteriaReward
@@ -30,7 +31,15 @@ def observation_space(config: EnvConfig) -> spaces.Box:
 
 
 def action_to_accel(action: np.ndarray, config: EnvConfig) -> np.ndarray:
-    """Actions in [-1, 1] (clipped) to desired accelerations [m/s^2]: ``+1 -> accel_max``, ``-1 -> -decel_max``."""
+    """Actions in [-1, 1] (clipped) to desired accelerations [m/s^2]: ``+1 -> accel_max``, ``-1 -> -decel_max``.
+
+    A 1-D float array of finite actions (what :func:`check_actions` returns) takes the
+    compiled :func:`acc_gym.envs._kernel.action_to_accel`; anything else this numpy
+    formulation, which is the kernel's reference."""
+    if type(action) is np.ndarray and action.ndim == 1 and action.dtype == np.float64:
+        out = np.empty(action.shape[0])
+        _K.action_to_accel(action, float(config.accel_max), float(config.decel_max), out)
+        return out
     a = np.minimum(np.maximum(action, -1.0), 1.0)  # np.clip, at a fraction of its call overhead
     return np.where(a >= 0, a * config.accel_max, a * config.decel_max)
 
@@ -209,13 +218,11 @@ class ACCEnv(gym.Env):
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
         a = check_actions(action, (1,))
         reward, term, trunc, info = self.core.step(action_to_accel(a, self.config))
-        out = {key: (value[0] if key != "rewards" else {k: float(v[0]) for k, v in value.items()})
-               for key, value in info.items() if key != "final"}
-        for key in ("t", "q", "g", "gap_safe", "a_applied"):
-            out[key] = float(out[key])
-        out["violation"] = bool(out["violation"])
-        out["fallbacks"] = int(out["fallbacks"])
-        out["modes"] = np.asarray(out["modes"]).copy()
+        out = {key: float(info[key][0]) for key in ("t", "q", "g", "gap_safe", "a_applied")}
+        out["violation"] = bool(info["violation"][0])
+        out["modes"] = info["modes"][0].copy()
+        out["fallbacks"] = int(info["fallbacks"][0])
+        out["rewards"] = {k: float(v[0]) for k, v in info["rewards"].items()}
         out["scenario"] = self.scenario.id
         if 0 in info["final"]:
             out.update(info["final"][0])

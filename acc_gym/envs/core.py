@@ -16,7 +16,7 @@ import numpy as np
 from acc_gym.drivers.slots import SlotDrivers
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.config import EnvConfig
-from acc_gym.envs.reward import StepIndicators
+from acc_gym.envs.reward import CriteriaReward, StepIndicators
 from acc_gym.evaluation.scoring import DEFAULT_TAU1, score_episode
 from acc_gym.evaluation.trace import EgoTrace
 from acc_gym.scenarios.spec import Scenario
@@ -42,6 +42,7 @@ class EpisodeBatch:
         self.world = SingleLaneWorld(x0, np.zeros((self.n, SLOTS)), [None, *self.slots],
                                      present=np.zeros((self.n, SLOTS), dtype=bool), dt=DT,
                                      sensor_range=config.sensor_range)
+        self._ego_width = np.ascontiguousarray(self.world.width[:, 0])
         self.scenarios: list[Scenario | None] = [None] * self.n
         self.steps = np.zeros(self.n, dtype=np.int64)
         self.set_speed = np.ones(self.n)
@@ -56,8 +57,10 @@ class EpisodeBatch:
         self.episode_return = np.zeros(self.n)
         self._set_record(np.zeros((len(_RECORD), self.n, 1)))
         cfg = config.scoring
+        # the proper-response grace per scene: the configured response time, or (None) each scene's tau1
+        self._grace = np.full(self.n, cfg.response_time) if cfg.response_time is not None else None
         self._cfg = np.array([cfg.b0, cfg.b1, cfg.band_width, cfg.steady_dv, cfg.moving_speed, cfg.transient,
-                              cfg.sensor_range, cfg.response_decel, cfg.stop_speed], dtype=float)
+                              cfg.sensor_range, cfg.response_decel, cfg.stop_speed, cfg.lead_margin], dtype=float)
 
     def _set_record(self, arr: np.ndarray) -> None:
         self._rec_arr = arr  # (columns, scenes, steps)
@@ -86,6 +89,7 @@ class EpisodeBatch:
         arr = scene_arrays(chosen, self.world.road)
         self.world.reset_rows(rows, arr.x0, arr.v0, present=arr.present, lateral=arr.lateral, lengths=arr.length,
                               width=arr.width)
+        self._ego_width = np.ascontiguousarray(self.world.width[:, 0])  # for _record (widths change only here)
         for s, slot in enumerate(self.slots, start=1):
             for j, row in enumerate(rows):
                 slot.assign(row, arr.drivers[s][j])
@@ -132,7 +136,7 @@ class EpisodeBatch:
         w = self.world
         nb = w.neighbours
         K.record(np.asarray(rows, dtype=np.int64), w.k, w.t, w.v, w.a, nb.lead, nb.gap, w.a_y, w.y,
-                 np.ascontiguousarray(w.width[:, 0]), self.lane_width, self.n_lanes, self._rec_arr)
+                 self._ego_width, self.lane_width, self.n_lanes, self._rec_arr)
 
     # ------------------------------------------------------------------ observation
     def observe(self, low=None, high=None, dtype=np.float64) -> np.ndarray:
@@ -159,27 +163,31 @@ class EpisodeBatch:
         w.step(a_des)
         t = w.t
         cfg = self.config.scoring
-        grace = np.full(self.n, cfg.response_time) if cfg.response_time is not None else self.tau1
+        grace = self._grace if self._grace is not None else self.tau1
         fl = np.empty((K.N_FLOAT, self.n))
         bo = np.empty((K.N_BOOL, self.n), dtype=bool)
         nb = w.neighbours
         K.criteria(t, w.v, w.a, nb.lead, nb.gap, a_prev, DT, self.set_speed, self.tau1, grace, self._cfg,
                    self.lead_prev, self.last_change, self.neg_since, fl, bo)
         q, gs, collision, violation = fl[K.F_Q], fl[K.F_GS], bo[K.B_COLLISION], bo[K.B_VIOLATION]
-        ind = StepIndicators(v=fl[K.F_V], a=fl[K.F_A], jerk=fl[K.F_JERK], set_speed=self.set_speed,
-                             has_lead=bo[K.B_HAS], gap=fl[K.F_GAP], gap_safe=gs, q=q, in_band=bo[K.B_IN_BAND],
-                             following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=violation,
-                             collision=collision, a_comfort=cfg.a_x_comfort, followable=bo[K.B_FOLLOWABLE],
-                             v_lead=fl[K.F_VLEAD], tau1=self.tau1)
-        reward, terms = self.reward_fn(ind)
-        reward = np.asarray(reward, dtype=float)
+        if type(self.reward_fn) is CriteriaReward:  # the default: straight from the criteria rows
+            reward, terms = self.reward_fn.from_criteria(fl, bo, self.set_speed, self.tau1, cfg.a_x_comfort)
+        else:
+            ind = StepIndicators(v=fl[K.F_V], a=fl[K.F_A], jerk=fl[K.F_JERK], set_speed=self.set_speed,
+                                 has_lead=bo[K.B_HAS], gap=fl[K.F_GAP], gap_safe=gs, q=q, in_band=bo[K.B_IN_BAND],
+                                 following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=violation,
+                                 collision=collision, a_comfort=cfg.a_x_comfort, followable=bo[K.B_FOLLOWABLE],
+                                 v_lead=fl[K.F_VLEAD], tau1=self.tau1)
+            reward, terms = self.reward_fn(ind)
+            reward = np.asarray(reward, dtype=float)
         if active is None:
             active = ~self.done
-        rows = np.flatnonzero(active)
+        terminated, truncated = np.empty(self.n, dtype=bool), np.empty(self.n, dtype=bool)
+        rows, ended = np.empty(self.n, dtype=np.int64), np.empty(self.n, dtype=np.int64)
+        n_rows, n_ended = K.settle(active, reward, bo, w.k, self.steps, self.config.terminate_on_violation,
+                                   self.episode_return, terminated, truncated, rows, ended)
+        rows, ended = rows[:n_rows], ended[:n_ended]
         self._record(rows)
-        self.episode_return[rows] += reward[rows]
-        terminated = collision | (violation & self.config.terminate_on_violation)
-        truncated = (w.k >= self.steps) & ~terminated
         fallbacks = sum(slot.fallbacks for slot in self.slots)
         modes = np.full((self.n, len(self.slots)), -1, dtype=np.int64)
         for j, slot in enumerate(self.slots):
@@ -187,7 +195,6 @@ class EpisodeBatch:
                 modes[:, j] = slot.info["mode"]
         info = {"t": t.copy(), "q": q, "g": q, "gap_safe": gs, "a_applied": fl[K.F_A], "violation": violation,
                 "modes": modes, "fallbacks": fallbacks, "rewards": terms}
-        ended = rows[(terminated | truncated)[rows]]
         info["final"] = {int(r): self._final(int(r)) for r in ended}
         self.done[ended] = True
         return reward, terminated, truncated, info

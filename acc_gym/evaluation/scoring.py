@@ -38,8 +38,23 @@ paper 003's test, a tailgater does not -- with these rules:
   that is known) but the ego never follows it steadily (it hangs back at another speed),
   the item fails; if there is never one (free flow, a stationary target, a lead that
   drives away faster than the set speed) the item does not apply and counts as
-  qualified. ``band="literal"``: every sample with a vehicle ahead and Gapsafe > 0 must
-  be in the band.
+  qualified. "Faster than the set speed" is meant strictly (``lead_margin`` = 0): an ACC
+  does not exceed its driver's set speed, so a lead above it cannot be followed in the
+  band, and counting it (as 0.1.0 did, within ``steady_dv``) failed ACCs that held their
+  set speed and taught learnt policies to speed. An ego that is still *closing in
+  efficiently* at every such sample is not hanging back: the test ended before steady following was reachable (paper 004's
+  approach scenarios start up to 200 m behind a slower lead and may last only seconds),
+  so the band is not judged (qualified, ``detail["approaching"]``) and efficiency is
+  speed keeping, as when the band does not apply. Closing in efficiently means faster
+  than the lead by more than ``steady_dv`` and either at the set speed (within
+  ``steady_dv``) or already too close to stop closing before the band's far edge at
+  ``approach_decel`` (0.5 m/s^2): ``(v1 - v0)^2 >= 2 approach_decel (D1 - 1.2 Gapsafe)``.
+  Dawdling behind (slower than the lead, or closing slowly from far back below the set
+  speed) still fails. ``band="literal"``: every sample with a vehicle ahead and
+  Gapsafe > 0 must be in the band. (Changed in 0.2.0: the closing-in exemption and the
+  strict set speed. 0.1.0 failed an approach cut short by the end of the test --
+  unavoidable in some of paper 004's approach scenarios -- and counted leads up to
+  ``steady_dv`` above the set speed. Scores of the two versions are not comparable.)
 * Because Gapsafe's steady-state value is ``v tau1``, the band ``0 < G < 0.2 Gapsafe`` in
   effect asks for a time gap between tau1 and 1.2 tau1. So ``tau1`` defaults to the
   scenario's nominal time gap (``EgoTrace.time_gap``; 1.5 s when unknown).
@@ -95,8 +110,10 @@ class ScoringConfig:
     band_width: float = 0.2  # [-] the band's upper edge as a fraction of Gapsafe
     band_share: float = 0.5  # [-] share of car-following samples that must be in the band
     steady_dv: float = 1.0  # [m/s] |v0 - v1| of car-following samples
+    lead_margin: float = 0.0  # [m/s] a lead this much above the set speed still counts as followable
     moving_speed: float = 1.0  # [m/s] both vehicles faster than this to count as following
     transient: float = 5.0  # [s] skipped after the start and after a new vehicle ahead
+    approach_decel: float = 0.5  # [m/s^2] an approach this close to the band counts as closing in
     clip: bool = True  # clip u_t and j to [0, 1]
     a_x_comfort: float = 3.0  # [m/s^2] paper 003
     a_y_comfort: float = 5.0  # [m/s^2] paper 003
@@ -112,7 +129,8 @@ class ScoringConfig:
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"ScoringConfig.{f.name} must be a finite number, got {value!r}")
-            positive = f.name in ("tau1", "b0", "b1", "band_width", "a_x_comfort", "a_y_comfort", "response_decel")
+            positive = f.name in ("tau1", "b0", "b1", "band_width", "a_x_comfort", "a_y_comfort", "response_decel",
+                                  "approach_decel")
             if positive and value <= 0:
                 raise ValueError(f"ScoringConfig.{f.name} must be > 0, got {value!r}")
             if value < 0:
@@ -213,6 +231,20 @@ def _after_transients(trace: EgoTrace, transient: float) -> np.ndarray:
     return t - last_event >= transient
 
 
+def _closing_in(v, v0, d1, gs, set_speed, cfg: ScoringConfig) -> np.ndarray:
+    """Samples where the ego closes in on its leader as fast as it should (module docstring).
+
+    Faster than the leader by more than ``steady_dv``, and either at its set speed or
+    already within the distance in which it must brake at ``approach_decel`` to stop
+    closing before the band's far edge ``(1 + band_width) Gapsafe``.
+    """
+    dv = v - v0
+    excess = d1 - (1.0 + cfg.band_width) * gs  # [m] beyond the band's far edge
+    braking_phase = dv ** 2 >= 2.0 * cfg.approach_decel * excess
+    cruising = np.zeros(v.shape, dtype=bool) if set_speed is None else v >= set_speed - cfg.steady_dv
+    return (dv > cfg.steady_dv) & (cruising | braking_phase)
+
+
 def _proper_response_violations(t, q, seen, a, v, cfg: ScoringConfig, grace: float) -> np.ndarray:
     """Samples where Q < 0 has outlasted the grace time without a proper response."""
     neg = seen & (q < 0)
@@ -257,7 +289,7 @@ def score_episode(trace: EgoTrace, config: ScoringConfig | None = None) -> Episo
     band = in_band(q, gs, cfg.band_width)
     u_t = efficiency_u(q, gs, cfg.band_width, clip=cfg.clip)
     moving = (trace.v > cfg.moving_speed) & (v0 > cfg.moving_speed)
-    too_fast = np.zeros(trace.n, dtype=bool) if trace.set_speed is None else v0 > trace.set_speed + cfg.steady_dv
+    too_fast = np.zeros(trace.n, dtype=bool) if trace.set_speed is None else v0 > trace.set_speed + cfg.lead_margin
     followable = has & (v0 > cfg.moving_speed) & ~too_fast  # a vehicle ahead the ego could follow
     free = ~(has & (trace.gap <= cfg.sensor_range)) | (has & too_fast)  # nothing in view to follow
     if cfg.band == "literal":
@@ -270,20 +302,25 @@ def score_episode(trace: EgoTrace, config: ScoringConfig | None = None) -> Episo
         following = candidates & moving & (np.abs(v0 - trace.v) <= cfg.steady_dv) & (gs > 0)
         share_needed = cfg.band_share
     applicable = bool(np.any(candidates))
+    approaching = False  # closing in efficiently at every candidate, never following steadily
     if not applicable:
         band_ok, share = True, float("nan")
     elif not np.any(following):
-        band_ok, share = False, 0.0
+        share = 0.0
+        approaching = cfg.band != "literal" and bool(np.all(
+            _closing_in(trace.v, v0, d1, gs, trace.set_speed, cfg)[candidates]))
+        band_ok = approaching
     else:
         share = float(np.mean(band[following]))
         band_ok = share >= share_needed - 1e-12
     car_following = ItemResult("car_following", f"0 < G < {cfg.band_width:g} Gapsafe", bool(band_ok), applicable,
                                {"share_in_band": share, "samples": int(np.sum(following)),
-                                "share_needed": share_needed})
+                                "share_needed": share_needed, "approaching": approaching})
     if np.any(following):
         u = float(np.mean(u_t[following]))
-    elif trace.set_speed is not None and not applicable and np.any(free):
-        u_speed = ((trace.set_speed - trace.v) / (cfg.band_width * trace.set_speed))[free]
+    elif trace.set_speed is not None and (approaching or not applicable) and np.any(free | candidates):
+        keeping = free | candidates if approaching else free
+        u_speed = ((trace.set_speed - trace.v) / (cfg.band_width * trace.set_speed))[keeping]
         u = float(np.mean(np.clip(u_speed, 0.0, 1.0) if cfg.clip else u_speed))
     else:
         u = float("nan")

@@ -147,6 +147,14 @@ class _Univariate:
         zl, zh = (float(v) for v in self._to_z(np.array([self.low, self.high])))
         return (-zh, -zl, True) if zl > 0 else (zl, zh, False)
 
+    @cached_property
+    def _cdf_bounds(self) -> tuple:
+        """``(F(a), F(b), flip)`` of :meth:`_z_bounds`, what :meth:`sample` maps uniforms through.
+        Cached on first use: a law is frozen, so this never goes stale (scenario resets sample
+        the same laws over and over)."""
+        a, b, flip = self._z_bounds()
+        return self._std.cdf(a), self._std.cdf(b), flip
+
     def _mass(self) -> float:
         """Probability of [low, high] under the untruncated law."""
         a, b, _ = self._z_bounds()
@@ -155,8 +163,7 @@ class _Univariate:
     def sample(self, rng: np.random.Generator, size: Size = None) -> float | np.ndarray:
         """Draw from the (truncated) law by the inverse CDF; a float if ``size`` is None."""
         _check_rng(rng)
-        a, b, flip = self._z_bounds()
-        ua, ub = self._std.cdf(a), self._std.cdf(b)
+        ua, ub, flip = self._cdf_bounds
         z = self._std.ppf(ua + (ub - ua) * rng.random(size))
         x = np.clip(self._from_z(-z if flip else z), self.low, self.high)
         return _out(x)

@@ -236,9 +236,8 @@ class SingleLaneWorld:
         positions, in one compiled pass (:func:`acc_gym.simulation._world_kernel.refresh`;
         the numpy reference is :meth:`_neighbours` with :class:`LateralPlan`)."""
         B, S = self.B, self.S
-        self.y, self.a_y = np.empty((B, S)), np.empty((B, S))
-        lead, lead2 = np.empty((B, S), dtype=np.int64), np.empty((B, S), dtype=np.int64)
-        gap, gap2 = np.empty((B, S)), np.empty((B, S))
+        self.y, self.a_y, gap, gap2 = np.empty((4, B, S))  # fresh arrays (one allocation) every state
+        lead, lead2 = np.empty((2, B, S), dtype=np.int64)
         lat = self.lateral
         _K.refresh(self.t, lat.y0, lat.y1, lat.t_start, lat.duration, self.x, self.lengths, self.present, self.width,
                    float(self.road.lane_width), self.y, self.a_y, lead, gap, lead2, gap2, self.collided, mark)
@@ -328,8 +327,7 @@ class SingleLaneWorld:
                 a_des[:, s] = model.act(self.observe(s))
             elif s == 0:
                 raise ValueError("the ego has no model: pass ego_a_des to step()")
-        shape = (self.B, self.S)
-        x, v, a, applied_des = np.empty(shape), np.empty(shape), np.empty(shape), np.empty(shape)
+        x, v, a, applied_des = np.empty((4, self.B, self.S))  # fresh arrays (one allocation): callers may keep the old
         # Eq. (3) and exact integration (acc_gym.vehicle.applied_acceleration / integrate, compiled)
         _K.advance(a_des, self.present, self.x, self.v, self._vp, self.dt, x, v, a, applied_des)
         self.x, self.v, self.a, self.a_des = x, v, a, applied_des

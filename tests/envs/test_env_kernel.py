@@ -163,7 +163,7 @@ def test_other_reward_objects_plug_in_through_reward_fn():
 # ----------------------------------------------------------------------------- criteria
 def cfg_array(cfg: ScoringConfig) -> np.ndarray:
     return np.array([cfg.b0, cfg.b1, cfg.band_width, cfg.steady_dv, cfg.moving_speed, cfg.transient,
-                     cfg.sensor_range, cfg.response_decel, cfg.stop_speed], dtype=float)
+                     cfg.sensor_range, cfg.response_decel, cfg.stop_speed, cfg.lead_margin], dtype=float)
 
 
 def reference_criteria(t, v, a, lead_all, gap_all, a_prev, dt, set_speed, tau1, grace, cfg: ScoringConfig, state):
@@ -184,7 +184,7 @@ def reference_criteria(t, v, a, lead_all, gap_all, a_prev, dt, set_speed, tau1, 
     gs = gap_safe(v1, v0, tau1, cfg.b0, cfg.b1)  # Gapsafe = v1 tau1 + v1^2/(2 b1) - v0^2/(2 b0)
     q = np.where(has, safety_q(gap, gs), np.inf)  # Q = D1 - Gapsafe, inf without a lead
     band = has & in_band(q, gs, cfg.band_width)  # 0 < Q < band_width Gapsafe (Gapsafe > 0)
-    too_fast = v0 > set_speed + cfg.steady_dv
+    too_fast = v0 > set_speed + cfg.lead_margin
     followable = has & (v0 > cfg.moving_speed) & ~too_fast
     settled = t - state["last_change"] >= cfg.transient
     following = (followable & settled & (v1 > cfg.moving_speed) & (v0 > cfg.moving_speed)
@@ -240,7 +240,7 @@ def random_sequence(rng, n, T, S=3):
 
 CONFIGS = [ScoringConfig(), ScoringConfig(response_time=0.6, transient=2.0, band_width=0.3, steady_dv=1.5,
                                           moving_speed=0.5, sensor_range=120.0, response_decel=2.5, stop_speed=0.3,
-                                          b0=7.0, b1=9.0)]
+                                          b0=7.0, b1=9.0, lead_margin=1.0)]
 
 
 @pytest.mark.parametrize("cfg", CONFIGS, ids=["default", "custom"])
@@ -312,7 +312,7 @@ def test_criteria_equal_the_numpy_reference_over_random_sequences(cfg):
             v0 = np.where(has, v[:, i, :][np.arange(T + 1), np.maximum(lead[:, i, 0], 0)], 0.0)
             v1 = v[:, i, 0]
             gs = gap_safe(v1, v0, tau1[i], cfg.b0, cfg.b1)
-            followable = has & (v0 > cfg.moving_speed) & ~(v0 > set_speed[i] + cfg.steady_dv)
+            followable = has & (v0 > cfg.moving_speed) & ~(v0 > set_speed[i] + cfg.lead_margin)
             following = (followable & settled & (v1 > cfg.moving_speed) & (np.abs(v0 - v1) <= cfg.steady_dv)
                          & (gs > 0))
             np.testing.assert_array_equal(seq["following"][:, i], following[1:], err_msg=f"scene {i}")
@@ -473,7 +473,7 @@ def test_singlelane_step_infos_are_what_the_report_and_trace_say():
                 assert first == infos[int(np.argmax(bad[1:]))]["t"]
             # band and efficiency rewards on exactly the report's car-following samples
             settled = _after_transients(tr, cfg.transient)
-            followable = has & (v0 > cfg.moving_speed) & ~(v0 > tr.set_speed + cfg.steady_dv)
+            followable = has & (v0 > cfg.moving_speed) & ~(v0 > tr.set_speed + cfg.lead_margin)
             following = (followable & settled & (tr.v > cfg.moving_speed) & (np.abs(v0 - tr.v) <= cfg.steady_dv)
                          & (gs > 0))
             band = following & in_band(q, gs, cfg.band_width)
@@ -487,7 +487,7 @@ def test_singlelane_step_infos_are_what_the_report_and_trace_say():
                 eff_sum = sum(i["rewards"]["efficiency"] for i in infos)
                 assert report["u"] == pytest.approx(1.0 - eff_sum / (weights.efficiency * following.sum()), abs=1e-9)
             # speed, comfort, jerk, collision and lag terms from the trace
-            free = (~(has & (tr.gap <= cfg.sensor_range)) | (has & (v0 > tr.set_speed + cfg.steady_dv))) & ~followable
+            free = (~(has & (tr.gap <= cfg.sensor_range)) | (has & (v0 > tr.set_speed + cfg.lead_margin))) & ~followable
             speed = np.where(free, 1.0 - np.minimum(np.abs(tr.v - tr.set_speed) / (0.2 * tr.set_speed), 1.0), 0.0)
             np.testing.assert_allclose([i["rewards"]["speed"] for i in infos], weights.speed * speed[1:], rtol=1e-12)
             np.testing.assert_allclose([i["rewards"]["comfort"] for i in infos],

@@ -137,6 +137,59 @@ def test_gapsafe_non_positive_samples_are_outside_band_and_efficiency():
     assert r.score == pytest.approx(60 + (1 - 2.0 / 2.4) * 20 + 20)
 
 
+def test_an_approach_cut_short_by_the_end_of_the_test_is_not_hanging_back():
+    # at its set speed of 25 m/s, 150 m behind a 20 m/s lead: 5 m/s closing, 100 m left at the end
+    t = np.arange(N, dtype=float)
+    approach = dict(gap=150.0 - 5.0 * t, v=25.0, v_lead=20.0)
+    r = score_episode(trace(set_speed=25.0, **approach), CFG)
+    band = r.item("car_following")
+    assert band.applicable and band.qualified and band.detail["approaching"] and band.detail["samples"] == 0
+    # efficiency is then speed keeping: u_t = (25 - 25) / 5 = 0, so R1 = 20, R2 = 20
+    assert r.u == 0.0 and r.score == pytest.approx(100.0)
+    # without a set speed nothing shows that 25 m/s was as fast as it should close in: it fails as before
+    assert not score_episode(trace(**approach), CFG).item("car_following").qualified
+    # the literal band judges every sample with a vehicle ahead: 100 m is far outside it
+    assert not score_episode(trace(set_speed=25.0, **approach), ScoringConfig.literal(tau1=1.0)).item(
+        "car_following").qualified
+
+
+def test_dawdling_behind_a_followable_lead_still_fails_the_band():
+    t = np.arange(N, dtype=float)
+    # 1.5 m/s faster than the lead but 3.5 m/s below the set speed, 150 m back: it could close in
+    r = score_episode(trace(gap=150.0 - 1.5 * t, v=21.5, v_lead=20.0, set_speed=25.0), CFG)
+    assert not r.item("car_following").qualified and not r.item("car_following").detail["approaching"]
+    assert r.score == 45.0
+    # slower than the lead: falling back
+    r = score_episode(trace(gap=30.0 + 1.5 * t, v=18.5, v_lead=20.0, set_speed=25.0), CFG)
+    assert not r.item("car_following").qualified
+
+
+@pytest.mark.parametrize("margin, closing_in", [(-0.1, True), (0.1, False)])
+def test_below_the_set_speed_an_approach_counts_once_it_must_brake_to_stop_at_the_band(margin, closing_in):
+    # braking from 25 to 21.25 m/s behind a 20 m/s lead, set speed 30 m/s (so never cruising):
+    # closing in iff (v1 - v0)^2 >= 2 * 0.5 m/s^2 * (D1 - 1.2 Gapsafe)
+    v = 25.0 - 0.375 * np.arange(N)
+    gs = gap_safe(v, 20.0, 1.0, 8.0, 8.0)
+    gap = 1.2 * gs + (v - 20.0) ** 2 / (2 * 0.5) + margin
+    r = score_episode(trace(gap=gap, v=v, v_lead=20.0, a=-0.375, set_speed=30.0), CFG)
+    assert r.item("car_following").qualified is closing_in
+    assert r.item("car_following").detail["approaching"] is closing_in
+    with pytest.raises(ValueError, match="approach_decel"):
+        ScoringConfig(approach_decel=0.0)
+
+
+def test_a_lead_above_the_set_speed_is_not_followable():
+    # the ego holds its set speed of 25 m/s, 60 m behind a lead at 25.5 m/s (time gap 2.4 s, beyond the band)
+    t = np.arange(N, dtype=float)
+    holding = trace(gap=60.0 + 0.5 * t, v=25.0, v_lead=25.5, set_speed=25.0)
+    r = score_episode(holding, CFG)
+    assert not r.item("car_following").applicable and r.qualified
+    assert r.u == 0.0 and r.score == pytest.approx(100.0)  # speed keeping: at the set speed
+    # lead_margin = 1 m/s (as in 0.1.0) counted that lead: holding the set speed failed the band
+    old = score_episode(holding, ScoringConfig(tau1=1.0, transient=0.0, lead_margin=1.0))
+    assert not old.item("car_following").qualified and old.score == 45.0
+
+
 def test_no_vehicle_ahead():
     t = trace(gap=np.inf, v=25.0, v_lead=0.0, set_speed=25.0)
     r = score_episode(t, CFG)

@@ -1,0 +1,135 @@
+"""The environment's fast paths equal the slow paths they short-cut, bit for bit.
+
+* :func:`acc_gym.envs._kernel.action_to_accel` (behind :func:`acc_gym.envs.acc_env.action_to_accel`
+  for 1-D float actions) equals the numpy formulation, which other inputs still take;
+* :meth:`CriteriaReward.from_criteria` (the core's path for the default reward) equals
+  :meth:`CriteriaReward.__call__` on the :class:`StepIndicators` built from the same rows;
+* :func:`acc_gym.envs._kernel.settle` equals the numpy bookkeeping it replaced (termination,
+  truncation, returns, ended scenes);
+* end to end, an environment with the default reward gives what one with an equal reward
+  object that takes the :class:`StepIndicators` path gives.
+"""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+import pytest
+
+import acc_gym  # noqa: F401  (registers the ids)
+from acc_gym.envs import _kernel as K
+from acc_gym.envs.acc_env import action_to_accel
+from acc_gym.envs.config import EnvConfig
+from acc_gym.envs.reward import CriteriaReward, StepIndicators
+
+
+def numpy_action_to_accel(action, config):
+    a = np.minimum(np.maximum(action, -1.0), 1.0)
+    return np.where(a >= 0, a * config.accel_max, a * config.decel_max)
+
+
+@pytest.mark.parametrize("config", [EnvConfig(), EnvConfig(accel_max=2, decel_max=7.5)], ids=["default", "custom"])
+def test_compiled_action_map_equals_the_numpy_formulation(config):
+    rng = np.random.default_rng(0)
+    a = np.concatenate([rng.uniform(-3.0, 3.0, 500), [-1.0, 1.0, 0.0, -0.0, 1e-300, -1e-300, 5e30]])
+    out = action_to_accel(a, config)
+    ref = numpy_action_to_accel(a, config)
+    assert out.dtype == np.float64 and out.shape == a.shape
+    assert np.array_equal(out.view(np.int64), ref.view(np.int64))  # signed zeros included
+    # other inputs (float32, 2-D, lists) keep the numpy path
+    for other in (a.astype(np.float32), a.reshape(-1, 1)):
+        assert np.array_equal(action_to_accel(other, config), numpy_action_to_accel(other, config))
+
+
+def random_rows(rng, n):
+    fl = np.empty((K.N_FLOAT, n))
+    fl[K.F_V] = rng.uniform(0.0, 35.0, n)
+    fl[K.F_A] = rng.uniform(-9.0, 4.0, n)
+    fl[K.F_JERK] = rng.normal(0.0, 20.0, n)
+    fl[K.F_GAP] = np.where(rng.random(n) < 0.8, rng.uniform(-2.0, 150.0, n), np.inf)
+    fl[K.F_GS] = rng.uniform(-5.0, 50.0, n)
+    fl[K.F_Q] = fl[K.F_GAP] - fl[K.F_GS]
+    fl[K.F_U] = np.where(rng.random(n) < 0.7, rng.uniform(0.0, 1.0, n), np.nan)
+    fl[K.F_VLEAD] = rng.uniform(0.0, 35.0, n)
+    fl[K.F_ALEAD] = rng.uniform(-5.0, 3.0, n)
+    bo = rng.random((K.N_BOOL, n)) < 0.5
+    return fl, bo
+
+
+@pytest.mark.parametrize("reward", [CriteriaReward(), CriteriaReward(band=2.0, lag=1.5, jerk_scale=4.0)],
+                         ids=["default", "weights"])
+def test_reward_from_criteria_rows_equals_the_indicators_path(reward):
+    rng = np.random.default_rng(1)
+    n = 300
+    fl, bo = random_rows(rng, n)
+    set_speed, tau1 = rng.uniform(5.0, 40.0, n), rng.uniform(0.5, 3.0, n)
+    ind = StepIndicators(v=fl[K.F_V], a=fl[K.F_A], jerk=fl[K.F_JERK], set_speed=set_speed, has_lead=bo[K.B_HAS],
+                         gap=fl[K.F_GAP], gap_safe=fl[K.F_GS], q=fl[K.F_Q], in_band=bo[K.B_IN_BAND],
+                         following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=bo[K.B_VIOLATION],
+                         collision=bo[K.B_COLLISION], a_comfort=2.5, followable=bo[K.B_FOLLOWABLE],
+                         v_lead=fl[K.F_VLEAD], tau1=tau1)
+    r_slow, terms_slow = reward(ind)
+    r_fast, terms_fast = reward.from_criteria(fl, bo, set_speed, tau1, 2.5)
+    assert np.array_equal(r_fast, r_slow)
+    assert list(terms_fast) == list(terms_slow) == list(K.TERMS)
+    for key in K.TERMS:
+        assert np.array_equal(terms_fast[key], terms_slow[key])
+
+
+@pytest.mark.parametrize("terminate_on_violation", [False, True])
+def test_settle_equals_the_numpy_bookkeeping(terminate_on_violation):
+    rng = np.random.default_rng(2)
+    n = 400
+    _, bo = random_rows(rng, n)
+    bo[K.B_COLLISION] = rng.random(n) < 0.1
+    active = rng.random(n) < 0.7
+    reward = rng.normal(0.0, 1.0, n)
+    k = rng.integers(0, 60, n)
+    steps = rng.integers(1, 60, n)
+    ret0 = rng.normal(0.0, 5.0, n)
+    # the numpy formulation the core used before the kernel
+    rows_ref = np.flatnonzero(active)
+    ret_ref = ret0.copy()
+    ret_ref[rows_ref] += reward[rows_ref]
+    term_ref = bo[K.B_COLLISION] | (bo[K.B_VIOLATION] & terminate_on_violation)
+    trunc_ref = (k >= steps) & ~term_ref
+    ended_ref = rows_ref[(term_ref | trunc_ref)[rows_ref]]
+    ret = ret0.copy()
+    term, trunc = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+    rows, ended = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    n_rows, n_ended = K.settle(active, reward, bo, k, steps, terminate_on_violation, ret, term, trunc, rows, ended)
+    assert np.array_equal(term, term_ref) and np.array_equal(trunc, trunc_ref)
+    assert np.array_equal(rows[:n_rows], rows_ref) and np.array_equal(ended[:n_ended], ended_ref)
+    assert np.array_equal(ret, ret_ref)
+
+
+class IndicatorReward:
+    """The default reward behind an object the core cannot recognise (the StepIndicators path)."""
+
+    def __init__(self):
+        self.inner = CriteriaReward()
+
+    def __call__(self, indicators):
+        return self.inner(indicators)
+
+
+def test_default_reward_fast_path_equals_the_indicators_path_end_to_end():
+    def run(reward_fn):
+        env = gymnasium.make("acc_gym/SingleLane-v0", reward_fn=reward_fn)
+        rng = np.random.default_rng(3)
+        out = [env.reset(seed=4)]
+        for _ in range(300):
+            step = env.step(rng.uniform(-1.0, 1.0, 1).astype(np.float32))
+            out.append(step)
+            if step[2] or step[3]:
+                out.append(env.reset())
+        return out
+
+    fast, slow = run(None), run(IndicatorReward())
+    assert len(fast) == len(slow)
+    for a, b in zip(fast, slow):
+        assert np.array_equal(a[0], b[0])
+        if len(a) == 5:
+            assert a[1] == b[1] and a[2:4] == b[2:4]
+            assert a[4]["rewards"] == b[4]["rewards"]
+            assert a[4].get("episode_return") == b[4].get("episode_return")
