@@ -12,7 +12,7 @@ scores a controller (a built-in name, or ``module:attribute`` naming an object w
 collisions and the extra metrics.
 
     acc-gym train {ppo,sac,td3} --env ID --timesteps T --seed S --out DIR [--num-envs 8]
-                  [--residual acc --residual-scale 0.3 [--shield]] [--score-bonus B] [--scenarios ...] [--weights ...]
+                  [--residual acc --residual-scale 0.3 [--shield [base]]] [--score-bonus B] [--scenarios ...] [--weights ...]
                   [--mix singlelane=0.75 carfollowing=0.25] [--algo-kwargs JSON]
 
 trains a policy with stable-baselines3 on the native vector env (progress bar, periodic
@@ -35,7 +35,7 @@ scores a recorded drive (columns ``t, v, a, gap, v_lead``; see
     acc-gym leaderboard [--suite S] [--split test] [--controllers C ...] [--out leaderboard] [--workers 2]
                         [--step-budget 1] [--budget 600] [--episodes N] [--no-report] [--json]
 
-scores controllers (default: every built-in), each in its own process with time budgets, on
+scores controllers (default: every built-in and the shipped ppo-acc), each in its own process with time budgets, on
 versioned suites (default: all four), prints the ranking and writes results.json,
 results.csv, leaderboard.md and report.html (see :mod:`acc_gym.leaderboard`).
 
@@ -194,7 +194,8 @@ def main(argv=None) -> int:
     p_demo.add_argument("--json", action="store_true", help="print one JSON object")
     p_eval = sub.add_parser("evaluate", help="score a controller over episodes of an environment")
     p_eval.add_argument("controller", help="a built-in name (acc, cacc, mp-cacc, idm, gipps, gm, fuzzy, mpc, "
-                                           "constant) or module:attribute")
+                                           "constant), the shipped policy ppo-acc, module:attribute or a "
+                                           "run directory of acc-gym train")
     p_eval.add_argument("--env", default="acc_gym/CarFollowing-v0", help="an environment id")
     p_eval.add_argument("--episodes", type=int, default=10)
     p_eval.add_argument("--seed", type=int, default=0)
@@ -217,14 +218,19 @@ def main(argv=None) -> int:
                       help='JSON settings of the base controller, e.g. \'{"k1": 0.8, "s0": 0.5}\'')
     p_tr.add_argument("--max-overspeed", type=float, default=None,
                       help="with --residual: cap the speed at the set speed plus this [m/s]")
-    p_tr.add_argument("--shield", action="store_true",
-                      help="with --residual: brake >= 2.5 m/s^2 whenever the observed Q = gap - Gapsafe < 0")
+    p_tr.add_argument("--shield", nargs="?", const="proper-response", default=None,
+                      choices=("proper-response", "base"),
+                      help="with --residual: brake >= 2.5 m/s^2 whenever the observed Q = gap - Gapsafe < 0 "
+                           "('base': and at least as hard as the base controller)")
     p_tr.add_argument("--score-bonus", type=float, default=0.0,
                       help="add BONUS * score / 100 to each episode's last reward")
     p_tr.add_argument("--scenarios", nargs="+", default=None, help="scenario ids or families to train on")
     p_tr.add_argument("--weights", nargs="+", type=float, default=None, help="their sampling weights")
     p_tr.add_argument("--mix", nargs="+", default=None, metavar="NAME=SHARE",
                       help="train on families (or ids) with these shares, e.g. singlelane=0.75 carfollowing=0.25")
+    p_tr.add_argument("--train-scoring", default=None,
+                      help='JSON scoring settings for the training environments only (reward, termination, score '
+                           'bonus), e.g. \'{"lead_margin": 1.0}\'; evaluations use the default scoring')
     p_tr.add_argument("--algo-kwargs", default=None,
                       help='JSON keyword arguments of the algorithm, e.g. \'{"policy_kwargs": {"log_std_init": -2}}\'')
     p_dd = sub.add_parser("driver-demo", help="simulate an MPC human-like driver and print what it did")
@@ -288,6 +294,7 @@ def main(argv=None) -> int:
                         residual_kwargs=json.loads(args.residual_kwargs) if args.residual_kwargs else None,
                         max_overspeed=args.max_overspeed,
                         score_bonus=args.score_bonus,
+                        train_scoring=json.loads(args.train_scoring) if args.train_scoring else None,
                         mix=mix, **env_settings)
         except (ValueError, TypeError) as exc:
             parser.error(str(exc))
@@ -400,7 +407,8 @@ def _add_leaderboard_parser(sub) -> None:
                         "comma-separate for several (default: all four)")
     p.add_argument("--split", default="test", help="dev or test (default test)")
     p.add_argument("--controllers", nargs="+", default=None,
-                   help="built-in names, module:attribute or saved model paths (default: every built-in)")
+                   help="built-in names, module:attribute or saved model paths (default: every built-in "
+                        "and the shipped policy ppo-acc)")
     p.add_argument("--out", default="leaderboard", help="output directory (default leaderboard/)")
     p.add_argument("--workers", type=int, default=DEFAULT_WORKERS, help="controllers run in parallel")
     p.add_argument("--step-budget", type=float, default=DEFAULT_STEP_BUDGET,

@@ -2,7 +2,8 @@
 
 A controller is any object with ``predict(obs, deterministic=True)`` returning the action
 (or ``(action, state)``, as stable-baselines3 models do): a built-in name of
-:data:`agents.controllers.BUILTINS`, ``"module:attribute"`` naming such an object, a
+:data:`agents.controllers.BUILTINS`, a shipped trained policy (:data:`agents.policies.SHIPPED`),
+``"module:attribute"`` naming such an object, a
 class or a factory that makes one, or a saved model (a run directory of ``acc-gym
 train`` or its ``model.zip``).
 """
@@ -23,9 +24,12 @@ def load_controller(ref):
         raise TypeError(f"a controller reference must be a name, 'module:attribute' or an object with predict(), "
                         f"got {type(ref).__name__}")
     from agents.controllers import BUILTINS
+    from agents.policies import SHIPPED, load_shipped
 
     if ref in BUILTINS:
         return BUILTINS[ref]()
+    if ref in SHIPPED:
+        return load_shipped(ref)
     from pathlib import Path
 
     if ref.endswith(".zip") or Path(ref).is_dir():  # a saved stable-baselines3 model (acc-gym train)
@@ -35,7 +39,8 @@ def load_controller(ref):
 
         return load_policy(ref)
     if ":" not in ref:
-        raise ValueError(f"unknown controller {ref!r}: use a built-in name {sorted(BUILTINS)} or 'module:attribute'")
+        raise ValueError(f"unknown controller {ref!r}: use a built-in name {sorted(BUILTINS)}, a shipped "
+                         f"policy {sorted(SHIPPED)} or 'module:attribute'")
     module_name, attr = ref.split(":", 1)
     try:
         module = importlib.import_module(module_name)

@@ -10,7 +10,8 @@ Defaults, and why:
   each suite at its first ``N`` episodes for quick runs (the manifest records the cap,
   and the table says how many ran).
 * **split**: ``test`` (tune on ``dev``).
-* **controllers**: every built-in of :data:`agents.controllers.BUILTINS`.
+* **controllers**: every built-in of :data:`agents.controllers.BUILTINS` and every shipped
+  trained policy of :data:`agents.policies.SHIPPED`.
 * **workers**: 2 controllers at a time; **step budget** 1 s per ``predict`` call (a
   hand-written law takes microseconds, a small policy network about a millisecond);
   **total budget** 600 s per controller.
@@ -49,8 +50,9 @@ VERSIONED = ("acc-gym", "numpy", "gymnasium", "scipy", "numba", "matplotlib", "p
 
 def default_controllers() -> list[str]:
     from agents.controllers import BUILTINS
+    from agents.policies import SHIPPED
 
-    return list(BUILTINS)
+    return list(BUILTINS) + list(SHIPPED)
 
 
 def versions() -> dict:

@@ -5,7 +5,9 @@ saved next to the model (``obs_rms.npz``) and applied here, so a saved model is 
 through the same path as the hand-written controllers. A residual run (``residual`` in
 its manifest, :mod:`agents.rl.residual`) executes ``clip(base(obs) + scale * model(obs),
 -1, 1)`` with the base controller on the raw observation (and the proper-response shield
-when ``shield`` is set), as in training.
+when ``shield`` is set), as in training. A PPO run also holds its actor exported to
+numpy (``policy.npz``, :mod:`agents.rl.mlp`), which :func:`load_policy` prefers: it needs
+neither torch nor stable-baselines3.
 """
 
 from __future__ import annotations
@@ -22,18 +24,25 @@ MANIFEST_FILE = "manifest.json"
 
 
 class SB3Policy:
-    """A loaded model plus its observation normalisation (and, for a residual run, its base controller)."""
+    """A loaded model plus its observation normalisation (and, for a residual run, its base controller).
+
+    ``model`` is anything with stable-baselines3's ``predict(obs, deterministic=...)``: the
+    stable-baselines3 model itself or its numpy export (:class:`agents.rl.mlp.NumpyActor`).
+    """
 
     def __init__(self, model, mean: np.ndarray, var: np.ndarray, clip: float = 10.0, eps: float = 1e-8,
-                 residual: str | None = None, residual_scale: float | None = None, shield: bool = False,
+                 residual: str | None = None, residual_scale: float | None = None, shield: str | bool | None = None,
                  residual_kwargs: dict | None = None, max_overspeed: float | None = None):
         self.model, self.mean, self.var, self.clip, self.eps = model, mean, var, clip, eps
-        self.residual, self.residual_scale, self.base, self.shield = residual, residual_scale, None, bool(shield)
+        from agents.rl.residual_law import check_shield
+
+        self.residual, self.residual_scale, self.base = residual, residual_scale, None
+        self.shield = check_shield(shield)
         self.max_overspeed = None
-        if (shield or max_overspeed is not None or residual_kwargs) and residual is None:
+        if (self.shield or max_overspeed is not None or residual_kwargs) and residual is None:
             raise ValueError("shield, max_overspeed and residual_kwargs are options of residual policies")
         if residual is not None:
-            from agents.rl.residual import check_overspeed, check_scale, make_base
+            from agents.rl.residual_law import check_overspeed, check_scale, make_base
 
             self.base = make_base(residual, residual_kwargs)
             self.max_overspeed = check_overspeed(max_overspeed)
@@ -49,33 +58,59 @@ class SB3Policy:
     def predict(self, obs, state=None, episode_start=None, deterministic: bool = True):
         action, _ = self.model.predict(self.normalise(obs), deterministic=deterministic)
         if self.base is not None:
-            from agents.rl.residual import controller_action
+            from agents.rl.residual_law import controller_action
 
             action = controller_action(obs, action, self.base, self.residual_scale, self.shield, self.max_overspeed)
         return action, None
 
 
-def load_policy(path) -> SB3Policy:
-    """Load a run directory written by :func:`agents.rl.train.train` (or its ``model.zip``)."""
-    path = Path(path)
-    run = path.parent if path.suffix == ".zip" else path
-    manifest_path = run / MANIFEST_FILE
+def read_manifest(run) -> dict:
+    """The manifest of a run directory; a missing or broken one is an error naming the file."""
+    manifest_path = Path(run) / MANIFEST_FILE
     if not manifest_path.is_file():
         raise ValueError(f"{run}: no {MANIFEST_FILE}; not a run directory written by `acc-gym train`")
     try:
         manifest = json.loads(manifest_path.read_text())
         algo = manifest["algo"]
-    except (json.JSONDecodeError, KeyError) as exc:
+    except (json.JSONDecodeError, KeyError, TypeError) as exc:
         raise ValueError(f"{manifest_path}: broken manifest ({exc})") from None
     if algo not in ALGOS:
         raise ValueError(f"{manifest_path}: unknown algorithm {algo!r}")
-    import stable_baselines3 as sb3
+    return manifest
 
-    cls = {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[algo]
-    model = cls.load(str(path if path.suffix == ".zip" else run / MODEL_FILE), device="cpu")
+
+BACKENDS = ("numpy", "sb3")
+
+
+def load_policy(path, backend: str | None = None) -> SB3Policy:
+    """Load a run directory written by :func:`agents.rl.train.train` (or its ``model.zip``).
+
+    ``backend``: ``"sb3"`` loads ``model.zip`` with stable-baselines3 (needs torch);
+    ``"numpy"`` evaluates the exported actor ``policy.npz`` (:mod:`agents.rl.mlp`; no
+    torch, deterministic actions only). ``None``: numpy when the run has a ``policy.npz``
+    and the path is not the ``model.zip`` itself, else stable-baselines3.
+    """
+    from agents.rl.mlp import POLICY_FILE, NumpyActor
+
+    path = Path(path)
+    run = path.parent if path.suffix == ".zip" else path
+    manifest = read_manifest(run)
+    if backend is None:
+        backend = "numpy" if path.suffix != ".zip" and (run / POLICY_FILE).is_file() else "sb3"
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown policy backend {backend!r}; use one of {BACKENDS}")
+    if backend == "numpy":
+        if not (run / POLICY_FILE).is_file():
+            raise ValueError(f"{run}: no {POLICY_FILE}; export it with agents.rl.mlp.export({str(run)!r})")
+        model = NumpyActor.load(run / POLICY_FILE)
+    else:
+        import stable_baselines3 as sb3
+
+        cls = {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[manifest["algo"]]
+        model = cls.load(str(path if path.suffix == ".zip" else run / MODEL_FILE), device="cpu")
     rms = np.load(run / RMS_FILE)
     residual = manifest.get("residual")
     return SB3Policy(model, rms["mean"], rms["var"], float(rms["clip"]), residual=residual,
                      residual_scale=manifest.get("residual_scale") if residual is not None else None,
-                     shield=bool(manifest.get("shield", False)), residual_kwargs=manifest.get("residual_kwargs"),
+                     shield=manifest.get("shield"), residual_kwargs=manifest.get("residual_kwargs"),
                      max_overspeed=manifest.get("max_overspeed"))

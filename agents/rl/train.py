@@ -2,7 +2,8 @@
 
     acc-gym train ppo --env acc_gym/CarFollowing-v0 --timesteps 200000 --seed 0 --out runs/ppo
 
-writes into ``--out``: ``model.zip`` (the final model), ``obs_rms.npz`` (observation
+writes into ``--out``: ``model.zip`` (the final model), for PPO ``policy.npz`` (its actor in
+plain numpy, :mod:`agents.rl.mlp`; the final evaluation scores it), ``obs_rms.npz`` (observation
 normalisation), ``checkpoints/`` (a model, its normalisation and a short manifest at every evaluation),
 ``evaluations.json`` (the 100-point score on held-out seeds at every evaluation) and
 ``manifest.json`` (package versions, algorithm, env id, config, seeds, budget, timings),
@@ -80,18 +81,22 @@ def mix_settings(mix: dict) -> dict:
 def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 100_000, seed: int = 0,
           out: str | os.PathLike = "runs/acc", num_envs: int = 8, eval_freq: int | None = None,
           eval_episodes: int = 5, progress: bool = False, algo_kwargs: dict | None = None,
-          residual: str | None = None, residual_scale: float = 0.3, shield: bool = False,
+          residual: str | None = None, residual_scale: float = 0.3, shield: str | bool | None = None,
           residual_kwargs: dict | None = None, max_overspeed: float | None = None, score_bonus: float = 0.0,
-          mix: dict | None = None, **env_settings) -> Path:
+          mix: dict | None = None, train_scoring: dict | None = None, **env_settings) -> Path:
     """Train ``algo`` (``ppo``, ``sac``, ``td3``) and write the run directory; returns its path.
 
     ``residual``: a base controller name (:data:`agents.rl.residual.BASES`, its settings
     ``residual_kwargs``) to learn a correction of, scaled by ``residual_scale``; ``shield``:
-    cap the action at a firm brake while the observed Q < 0
-    (:func:`agents.rl.residual.proper_response_shield`); ``max_overspeed``: cap the speed at the
+    cap the action at a firm brake while the observed Q < 0, ``"base"``: and at the base
+    controller's action (:func:`agents.rl.residual.proper_response_shield`); ``max_overspeed``: cap the speed at the
     set speed plus this (:func:`agents.rl.residual.speed_cap`); ``score_bonus``: weight of the
     episode's 100-point score (/100) added to its last reward; ``mix``: scenario families (or
-    ids) and their shares (:func:`mix_settings`), instead of ``scenarios`` / ``weights``."""
+    ids) and their shares (:func:`mix_settings`), instead of ``scenarios`` / ``weights``;
+    ``train_scoring``: :class:`~acc_gym.evaluation.ScoringConfig` settings for the *training*
+    environments only (their reward, termination and the score bonus), e.g.
+    ``{"lead_margin": 1.0}``; the evaluations, like every user of the run, score with the
+    environment's own scoring, so they stay comparable with other controllers."""
     import gymnasium as gym
     import stable_baselines3 as sb3
     from stable_baselines3.common.callbacks import BaseCallback
@@ -106,15 +111,25 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
     for name, value in (("timesteps", timesteps), ("num_envs", num_envs), ("eval_episodes", eval_episodes)):
         if int(value) != value or value < 1:
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    from agents.rl.residual_law import check_shield
+
+    shield = check_shield(shield)  # stored normalised: None, "proper-response" or "base"
     spec = gym.spec(env_id)  # raises for an unknown id
     if mix:
         if "scenarios" in env_settings or "weights" in env_settings:
             raise ValueError("give either mix or scenarios / weights, not both")
         env_settings = {**env_settings, **mix_settings(mix)}
     settings = {**spec.kwargs, **env_settings}
+    train_settings = dict(settings)
+    if train_scoring:
+        from acc_gym.evaluation.scoring import ScoringConfig
+
+        base = settings.get("scoring", ScoringConfig())
+        base = ScoringConfig.from_dict(base) if isinstance(base, dict) else base
+        train_settings["scoring"] = ScoringConfig.from_dict({**base.to_dict(), **train_scoring})  # validated
     out = Path(out)
     (out / "checkpoints").mkdir(parents=True, exist_ok=True)
-    raw = SB3VecEnv(int(num_envs), seed=int(seed), **settings)
+    raw = SB3VecEnv(int(num_envs), seed=int(seed), **train_settings)
     if residual is not None:
         from agents.rl.residual import ResidualVecEnv, check_scale
 
@@ -122,7 +137,7 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
         raw = ResidualVecEnv(raw, residual, residual_scale, shield, residual_kwargs,  # below VecNormalize: raw obs
                              max_overspeed)
     elif shield:
-        raise ValueError("shield=True needs a residual base controller (residual='acc')")
+        raise ValueError(f"shield={shield!r} needs a residual base controller (residual='acc')")
     if (residual_kwargs or max_overspeed is not None) and residual is None:
         raise ValueError("residual_kwargs and max_overspeed need a residual base controller (residual='acc')")
     if score_bonus:
@@ -135,9 +150,9 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
     eval_freq = int(eval_freq) if eval_freq else max(int(timesteps) // 5, 1)
     evaluations: list[dict] = []
 
-    def run_eval(step: int) -> dict:
+    def run_eval(step: int, actor=None) -> dict:
         rms = venv.obs_rms
-        policy = SB3Policy(model, rms.mean.copy(), rms.var.copy(), venv.clip_obs, residual=residual,
+        policy = SB3Policy(model if actor is None else actor, rms.mean.copy(), rms.var.copy(), venv.clip_obs, residual=residual,
                            residual_scale=residual_scale if residual is not None else None, shield=shield,
                            residual_kwargs=residual_kwargs, max_overspeed=max_overspeed)
         summary = evaluate(policy, env_id, episodes=eval_episodes, seed=int(seed) + EVAL_SEED_OFFSET, **env_settings)
@@ -151,7 +166,7 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
         ck_manifest = {"algo": algo, "env_id": env_id, "timesteps": step, "seed": int(seed), "checkpoint": True,
                        "evaluation": entry, "residual": residual,
                        "residual_scale": float(residual_scale) if residual is not None else None,
-                       "shield": bool(shield), "residual_kwargs": residual_kwargs or None,
+                       "shield": shield, "residual_kwargs": residual_kwargs or None,
                        "max_overspeed": max_overspeed}
         _atomic_write(ck / MANIFEST_FILE, json.dumps(ck_manifest, indent=1).encode())  # loadable on its own
         _atomic_write(out / "evaluations.json", json.dumps(evaluations, indent=1).encode())
@@ -175,9 +190,18 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
     if evaluations and evaluations[-1]["timesteps"] == done_at:
         # the callback ran before the last update (rollout collection comes first): score the final model
         evaluations.pop()
-    final = run_eval(done_at)
+    # a PPO run also keeps its actor in plain numpy, which is what load_policy runs by default
+    # (agents.rl.mlp; no torch needed): the final evaluation scores that, so it is reproducible
+    actor = None
+    if algo == "ppo":
+        from agents.rl.mlp import POLICY_FILE, from_sb3
+
+        actor = from_sb3(model)
+    final = run_eval(done_at, actor)
     _save_model(model, out / MODEL_FILE)
     _save_rms(out / RMS_FILE, venv)
+    if actor is not None:
+        actor.save(out / POLICY_FILE)
     manifest = {"algo": algo, "env_id": env_id, "env_settings": {k: (list(v) if isinstance(v, tuple) else v)
                                                                  for k, v in settings.items()},
                 "timesteps": int(model.num_timesteps), "seed": int(seed), "num_envs": int(num_envs),
@@ -185,8 +209,9 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
                 "final_evaluation": final, "train_wall_time_s": wall, "versions": _versions(),
                 "algo_kwargs": algo_kwargs or {}, "residual": residual,
                 "residual_scale": float(residual_scale) if residual is not None else None,
-                "shield": bool(shield), "residual_kwargs": residual_kwargs or None, "max_overspeed": max_overspeed,
-                "score_bonus": float(score_bonus), "mix": dict(mix) if mix else None}
+                "shield": shield, "residual_kwargs": residual_kwargs or None, "max_overspeed": max_overspeed,
+                "score_bonus": float(score_bonus), "mix": dict(mix) if mix else None,
+                "train_scoring": dict(train_scoring) if train_scoring else None}
     _atomic_write(out / MANIFEST_FILE, json.dumps(manifest, indent=1, default=str).encode())
     venv.close()
     return out

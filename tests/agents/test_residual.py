@@ -84,6 +84,26 @@ def test_shield_brakes_firmly_while_q_is_negative_and_otherwise_leaves_the_actio
     assert single.shape == (1,) and single[0] <= -2.5 / 8.0
 
 
+def test_base_shield_never_brakes_softer_than_the_base_inside_gapsafe_at_any_speed():
+    class Base:  # brakes hard everywhere
+        def predict(self, obs, deterministic=True):
+            return np.full((np.atleast_2d(obs).shape[0], 1), -0.9, np.float32), None
+
+    # Q < 0 moving; Q > 0; Q < 0 creeping at 0.3 m/s towards a stopped car 0.2 m ahead
+    obs = np.array([[20.0, 0.0, 20.0, 0.0, 1.0, 25.0, 1.5],
+                    [20.0, 0.0, 40.0, 0.0, 1.0, 25.0, 1.5],
+                    [0.3, 0.0, 0.2, -0.3, 1.0, 25.0, 1.5]], np.float32)
+    wants = np.ones((3, 1), np.float32)  # the learnt part asks for full throttle
+    base = controller_action(obs, wants, Base(), 0.5, shield="base")
+    plain = controller_action(obs, wants, Base(), 0.5, shield="proper-response")
+    # base + 0.5 * 1 = -0.4; inside Gapsafe the base's -0.9 wins, at any speed
+    np.testing.assert_allclose(base[:, 0], [-0.9, -0.4, -0.9], atol=1e-6)
+    # the plain shield only caps at -2.5 / 8 (moving): -0.4 already brakes harder; it leaves the creeping ego alone
+    np.testing.assert_allclose(plain[:, 0], [-0.4, -0.4, -0.4], atol=1e-6)
+    with pytest.raises(ValueError, match="shield"):
+        controller_action(obs, wants, Base(), 0.5, shield="strong")
+
+
 def test_speed_cap_keeps_the_ego_near_its_set_speed():
     obs = np.array([[20.0, 0.0, 200.0, 0.0, 0.0, 20.0, 1.5],   # at the set speed: no acceleration
                     [18.0, 0.0, 200.0, 0.0, 0.0, 20.0, 1.5],   # 2 m/s below: up to 2 m/s^2
@@ -132,7 +152,7 @@ def test_a_saved_residual_run_reloads_and_scores_as_the_in_memory_policy(tmp_pat
                 algo_kwargs={"n_steps": 64, "batch_size": 64, "policy_kwargs": {"log_std_init": -2.0}})
     manifest = json.loads((run / "manifest.json").read_text())
     assert (manifest["residual"], manifest["residual_scale"], manifest["shield"], manifest["score_bonus"]) == (
-        "acc", 0.3, True, 10.0)
+        "acc", 0.3, "proper-response", 10.0)
     assert manifest["residual_kwargs"] == {"k1": 0.5} and manifest["max_overspeed"] == 1.0
     policy = load_policy(run)
     assert isinstance(load_controller(str(run)), SB3Policy)
@@ -181,3 +201,25 @@ def test_tiny_residual_training_through_the_cli(tmp_path, capsys):
     assert manifest["algo_kwargs"] == {"n_steps": 64, "batch_size": 128}
     s = evaluate(str(out), "acc_gym/CarFollowing-v0", episodes=1, seed=2)
     assert s["episodes"] == 1 and 0.0 <= s["mean_score"] <= 100.0
+
+
+def test_train_scoring_changes_the_training_environments_only(tmp_path, monkeypatch):
+    import agents.rl.vec_env as vec_env
+
+    seen = []
+
+    class Spy(vec_env.SB3VecEnv):
+        def __init__(self, num_envs, seed=None, **settings):
+            seen.append(settings.get("scoring"))
+            super().__init__(num_envs, seed=seed, **settings)
+
+    monkeypatch.setattr(vec_env, "SB3VecEnv", Spy)
+    with pytest.raises(ValueError, match="lead_margn"):
+        train("ppo", "acc_gym/CarFollowing-v0", timesteps=64, out=tmp_path / "bad", train_scoring={"lead_margn": 1.0})
+    run = train("ppo", "acc_gym/CarFollowing-v0", timesteps=128, seed=2, out=tmp_path / "ts", num_envs=2,
+                eval_episodes=1, train_scoring={"lead_margin": 1.0}, algo_kwargs={"n_steps": 64, "batch_size": 64})
+    assert [s.lead_margin for s in seen] == [1.0]  # the training envs
+    manifest = json.loads((run / "manifest.json").read_text())
+    assert manifest["train_scoring"] == {"lead_margin": 1.0} and "scoring" not in manifest["env_settings"]
+    again = evaluate(str(run), "acc_gym/CarFollowing-v0", episodes=1, seed=manifest["eval_seed"])  # default scoring
+    assert again["mean_score"] == manifest["final_evaluation"]["mean_score"]

@@ -41,9 +41,10 @@ def test_tiny_ppo_run_saves_reloads_and_is_scored_through_the_same_path(tmp_path
     assert len(list((run / "checkpoints").iterdir())) == len(evals)
     policy = load_policy(run)
     assert isinstance(policy, SB3Policy) and isinstance(load_controller(str(run)), SB3Policy)
-    a1, _ = policy.predict(np.zeros(7, np.float32))
-    a2, _ = load_policy(run / "model.zip").predict(np.zeros(7, np.float32))
-    assert a1.shape == (1,) and np.array_equal(a1, a2)
+    a1, _ = policy.predict(np.zeros(7, np.float32))  # the run directory: its numpy actor (policy.npz)
+    a2, _ = load_policy(run / "model.zip").predict(np.zeros(7, np.float32))  # the stable-baselines3 model
+    a3, _ = load_policy(run, backend="sb3").predict(np.zeros(7, np.float32))
+    assert a1.shape == (1,) and np.array_equal(a2, a3) and np.allclose(a1, a2, atol=1e-6)
     by_path = evaluate(str(run), "acc_gym/NCAP-v0", episodes=2, seed=9)
     by_object = evaluate(policy, "acc_gym/NCAP-v0", episodes=2, seed=9)
     assert by_path["scores"] == by_object["scores"]
