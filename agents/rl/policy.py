@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.rl.residual_law import check_overspeed, check_scale, check_shield, controller_action, make_base
+
 ALGOS = ("ppo", "sac", "td3")
 MODEL_FILE = "model.zip"
 RMS_FILE = "obs_rms.npz"
@@ -34,16 +36,12 @@ class SB3Policy:
                  residual: str | None = None, residual_scale: float | None = None, shield: str | bool | None = None,
                  residual_kwargs: dict | None = None, max_overspeed: float | None = None):
         self.model, self.mean, self.var, self.clip, self.eps = model, mean, var, clip, eps
-        from agents.rl.residual_law import check_shield
-
         self.residual, self.residual_scale, self.base = residual, residual_scale, None
         self.shield = check_shield(shield)
         self.max_overspeed = None
         if (self.shield or max_overspeed is not None or residual_kwargs) and residual is None:
             raise ValueError("shield, max_overspeed and residual_kwargs are options of residual policies")
         if residual is not None:
-            from agents.rl.residual_law import check_overspeed, check_scale, make_base
-
             self.base = make_base(residual, residual_kwargs)
             self.max_overspeed = check_overspeed(max_overspeed)
             self.residual_scale = check_scale(residual_scale)
@@ -58,8 +56,6 @@ class SB3Policy:
     def predict(self, obs, state=None, episode_start=None, deterministic: bool = True):
         action, _ = self.model.predict(self.normalise(obs), deterministic=deterministic)
         if self.base is not None:
-            from agents.rl.residual_law import controller_action
-
             action = controller_action(obs, action, self.base, self.residual_scale, self.shield, self.max_overspeed)
         return action, None
 
