@@ -10,9 +10,12 @@ actions and episodes ending and restarting as they come (resets included in the 
   environments, counting every sub-environment step.
 
 Each figure is the median of ``--repeats`` timed runs after a warm-up run (numba
-kernels compiled, caches warm); the spread is printed too. ``--parallel`` runs the vector
-env's MPC drivers on numba's thread pool (``MPCSettings(parallel=None)``; off by default,
-see :class:`acc_gym.drivers.mpc.MPCSettings`) and reports that figure as well.
+kernels compiled, caches warm); the spread is printed too. ``--workers K`` (default: the
+number of cores, if more than one) also times the vector env split over ``K`` worker
+processes (``make_vec(..., workers=K)``, :mod:`acc_gym.envs.shards`) as
+``vector_env_workers_steps_per_s``; ``--workers 1`` skips it. ``--parallel`` runs the
+vector env's MPC drivers on numba's thread pool (``MPCSettings(parallel=None)``; off by
+default, see :class:`acc_gym.drivers.mpc.MPCSettings`) and reports that figure as well.
 
     python benchmarks/bench_env.py            # table
     python benchmarks/bench_env.py --json     # one JSON object
@@ -22,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 
 import gymnasium as gym
@@ -47,16 +51,19 @@ def single_env_rate(steps: int, seed: int) -> float:
     return steps / (time.perf_counter() - t0)
 
 
-def vector_env_rate(num_envs: int, steps: int, seed: int, parallel: bool = False) -> float:
+def vector_env_rate(num_envs: int, steps: int, seed: int, parallel: bool = False, workers: int = 1) -> float:
     kwargs = {"mpc_settings": MPCSettings(parallel=None)} if parallel else {}
     envs = gym.make_vec("acc_gym/SingleLane-v0", num_envs=num_envs, vectorization_mode="vector_entry_point",
-                        scenarios=THREE_VEHICLES, **kwargs)
+                        scenarios=THREE_VEHICLES, workers=workers, **kwargs)
     rng = np.random.default_rng(seed)
     envs.reset(seed=seed)
+    actions = rng.uniform(-0.3, 0.3, (steps, num_envs, 1)).astype(np.float32)
     t0 = time.perf_counter()
-    for _ in range(steps):
-        envs.step(rng.uniform(-0.3, 0.3, (num_envs, 1)).astype(np.float32))
-    return num_envs * steps / (time.perf_counter() - t0)
+    for k in range(steps):
+        envs.step(actions[k])
+    rate = num_envs * steps / (time.perf_counter() - t0)
+    envs.close()
+    return rate
 
 
 def main(argv=None) -> dict:
@@ -66,6 +73,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--num-envs", type=int, default=256)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--parallel", action="store_true", help="also time the vector env with threaded MPC drivers")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                        help="also time the vector env over this many worker processes (1: skip)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     single_env_rate(300, 99)  # warm-up: compile and cache
@@ -80,6 +89,11 @@ def main(argv=None) -> dict:
         "num_envs": args.num_envs,
         "vector_over_single": float(np.median(vectors) / np.median(singles)),
     }
+    if args.workers > 1:
+        work = [vector_env_rate(args.num_envs, args.vector_steps, r, workers=args.workers) for r in range(args.repeats)]
+        out["workers"] = args.workers
+        out["vector_env_workers_steps_per_s"] = float(np.median(work))
+        out["vector_env_workers_steps_per_s_runs"] = [round(x) for x in work]
     if args.parallel:
         vector_env_rate(min(args.num_envs, 16), 20, 99, parallel=True)
         par = [vector_env_rate(args.num_envs, args.vector_steps, r, parallel=True) for r in range(args.repeats)]
@@ -92,6 +106,9 @@ def main(argv=None) -> dict:
               f"(runs {out['env_steps_per_s_runs']}; target >= 10,000)")
         print(f"vector env, {args.num_envs} envs:            {out['vector_env_steps_per_s']:,.0f} steps/s "
               f"(runs {out['vector_env_steps_per_s_runs']}; target >= 100,000)")
+        if args.workers > 1:
+            print(f"vector env, {args.workers} worker processes:  {out['vector_env_workers_steps_per_s']:,.0f} steps/s "
+                  f"(runs {out['vector_env_workers_steps_per_s_runs']})")
         if args.parallel:
             print(f"vector env, threaded MPC drivers:    {out['vector_env_parallel_steps_per_s']:,.0f} steps/s "
                   f"(runs {out['vector_env_parallel_steps_per_s_runs']})")

@@ -18,9 +18,12 @@ import math
 import numba
 import numpy as np
 
+from acc_gym.simulation import _world_kernel as _W
+
 # rows of criteria()'s float output
 F_V, F_A, F_JERK, F_GAP, F_GS, F_Q, F_U, F_VLEAD, F_ALEAD = range(9)
 N_FLOAT = 9
+F_T = N_FLOAT  # the scene's time [s]: the extra row step() writes after criteria()'s
 # rows of its boolean output
 B_HAS, B_IN_BAND, B_FOLLOWING, B_FREE, B_VIOLATION, B_COLLISION, B_FOLLOWABLE = range(7)
 N_BOOL = 7
@@ -220,3 +223,43 @@ def action_to_accel(action, accel_max, decel_max, out):  # pragma: no cover - co
     for i in range(action.shape[0]):
         a = min(max(action[i], -1.0), 1.0)
         out[i] = a * accel_max if a >= 0 else a * decel_max
+
+
+@numba.njit(cache=True, error_model="numpy")
+def step(a_des, present, x, v, a, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
+         sensor_range, F, I, obs_all,
+         set_speed, tau1, grace, cfg, lead_prev, last_change, neg_since, fl, bo,
+         with_reward, a_comfort, w, terms, reward):  # pragma: no cover - compiled
+    """One environment step after the drivers decided (``a_des`` ``(n, S)``): the world's
+    move (:func:`acc_gym.simulation._world_kernel.move`; ``x``, ``v``, ``a`` the state
+    before it, the new one goes to ``F``, ``I``, ``obs_all``), :func:`criteria` into the
+    rows of ``fl`` (plus the scenes' new times in row :data:`F_T`) and ``bo`` and, with
+    ``with_reward``, the default reward (:func:`criteria_reward_rows`) -- what
+    :meth:`acc_gym.envs.core.EpisodeBatch.step` does between the drivers and
+    :func:`finish`, in one call."""
+    n = k.shape[0]
+    a_prev = np.empty(n)
+    for i in range(n):
+        a_prev[i] = a[i, 0]  # the ego's applied acceleration before the step [m/s^2]
+    t = fl[F_T]
+    _W.move(a_des, present, x, v, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
+            sensor_range, F, I, obs_all, t)
+    criteria(t, F[1], F[2], I[0], F[6], a_prev, dt, set_speed, tau1, grace, cfg, lead_prev, last_change, neg_since,
+             fl, bo)
+    if with_reward:
+        criteria_reward_rows(fl, bo, set_speed, tau1, a_comfort, w, terms, reward)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def finish(active, reward, bo, k, steps, terminate_on_violation, episode_return, terminated, truncated, rows, ended,
+           fl, F, I, width0, lane_width, n_lanes, rec, obs_all, set_speed, time_gap, obs_range, v2v, low, high,
+           obs):  # pragma: no cover - compiled
+    """The rest of a step: :func:`settle`, :func:`record` of the active scenes, and the
+    ego's :func:`observe` into ``obs`` (``(n, m)``, or nothing when it has no rows).
+    Returns :func:`settle`'s counts."""
+    n_rows, n_ended = settle(active, reward, bo, k, steps, terminate_on_violation, episode_return, terminated,
+                             truncated, rows, ended)
+    record(rows[:n_rows], k, fl[F_T], F[1], F[2], I[0], F[6], F[5], F[4], width0, lane_width, n_lanes, rec)
+    if obs.shape[0] > 0:
+        observe(obs_all[0], set_speed, time_gap, obs_range, v2v, low, high, obs)
+    return n_rows, n_ended

@@ -184,6 +184,8 @@ class ACCEnv(gym.Env):
         self.observation_space = observation_space(self.config)
         self.core = EpisodeBatch(1, self.config, scenario_generator or ScenarioSampler(self.config),
                                  reward_fn or CriteriaReward(), mpc_settings)
+        self.core.obs_bounds = self._bounds = (self.observation_space.low.astype(float),
+                                               self.observation_space.high.astype(float))
         self._needs_reset = True
         self._viewer = None
 
@@ -192,8 +194,6 @@ class ACCEnv(gym.Env):
         return self.core.scenarios[0]
 
     def _obs(self) -> np.ndarray:
-        if not hasattr(self, "_bounds"):
-            self._bounds = (self.observation_space.low.astype(float), self.observation_space.high.astype(float))
         return self.core.observe(*self._bounds, dtype=np.float32)[0]
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -218,18 +218,23 @@ class ACCEnv(gym.Env):
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
         a = check_actions(action, (1,))
         reward, term, trunc, info = self.core.step(action_to_accel(a, self.config))
-        out = {key: float(info[key][0]) for key in ("t", "q", "g", "gap_safe", "a_applied")}
-        out["violation"] = bool(info["violation"][0])
-        out["modes"] = info["modes"][0].copy()
-        out["fallbacks"] = int(info["fallbacks"][0])
-        out["rewards"] = {k: float(v[0]) for k, v in info["rewards"].items()}
+        fl, bo, terms = self.core.last_rows
+        f = fl[:, 0].tolist()  # one conversion for every float of the step (criteria rows, time)
+        q = f[_K.F_Q]
+        out = {"t": f[_K.F_T], "q": q, "g": q, "gap_safe": f[_K.F_GS], "a_applied": f[_K.F_A],
+               "violation": bool(bo[_K.B_VIOLATION, 0]), "modes": info["modes"][0].copy(),
+               "fallbacks": int(info["fallbacks"][0])}
+        if terms is not None:  # the default reward's terms, as one array
+            out["rewards"] = dict(zip(_K.TERMS, terms[:, 0].tolist()))
+        else:
+            out["rewards"] = {k: float(v[0]) for k, v in info["rewards"].items()}
         out["scenario"] = self.scenario.id
         if 0 in info["final"]:
             out.update(info["final"][0])
             self._needs_reset = True
         if self.render_mode == "human":
             self.render()
-        return self._obs(), float(reward[0]), bool(term[0]), bool(trunc[0]), out
+        return self.core.last_obs[0], float(reward[0]), bool(term[0]), bool(trunc[0]), out
 
     def render(self):
         if self.render_mode is None:

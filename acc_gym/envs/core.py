@@ -59,6 +59,9 @@ class EpisodeBatch:
         cfg = config.scoring
         # the proper-response grace per scene: the configured response time, or (None) each scene's tau1
         self._grace = np.full(self.n, cfg.response_time) if cfg.response_time is not None else None
+        self.obs_bounds: tuple[np.ndarray, np.ndarray] | None = None  # (low, high) float arrays: see step()
+        self.last_obs: np.ndarray | None = None
+        self._no_bounds = np.zeros(1)
         self._cfg = np.array([cfg.b0, cfg.b1, cfg.band_width, cfg.steady_dv, cfg.moving_speed, cfg.transient,
                               cfg.sensor_range, cfg.response_decel, cfg.stop_speed, cfg.lead_margin], dtype=float)
 
@@ -157,21 +160,38 @@ class EpisodeBatch:
         Returns ``(reward, terminated, truncated, info)`` as arrays over the scenes;
         ``info`` holds per-step arrays and, under ``"final"``, a dict row -> final info for
         the episodes that ended. Scenes not ``active`` are stepped but their results are
-        meaningless (a vector env's scenes that are about to be reset)."""
+        meaningless (a vector env's scenes that are about to be reset). With
+        :attr:`obs_bounds` set, :attr:`last_obs` holds the observations after the step.
+
+        The drivers decide in :meth:`SingleLaneWorld.decide
+        <acc_gym.simulation.single_lane.SingleLaneWorld.decide>`; everything after them (the
+        world's move, the criteria, the default reward, the end of the step, the record and
+        the observations) is two compiled calls, :func:`acc_gym.envs._kernel.step` and
+        :func:`~acc_gym.envs._kernel.finish` -- the same kernels, in the same order, that
+        :meth:`SingleLaneWorld.move` and the separate criteria, reward, settle, record and
+        observe calls run (``tests/envs/test_env_fast_paths.py`` checks the two agree).
+        """
         w = self.world
-        a_prev = w.a[:, 0].copy()
-        w.step(a_des)
-        t = w.t
+        n = self.n
+        a_all = w.decide(a_des)
+        F, I, obs_all = w.move_buffers()
         cfg = self.config.scoring
         grace = self._grace if self._grace is not None else self.tau1
-        fl = np.empty((K.N_FLOAT, self.n))
-        bo = np.empty((K.N_BOOL, self.n), dtype=bool)
-        nb = w.neighbours
-        K.criteria(t, w.v, w.a, nb.lead, nb.gap, a_prev, DT, self.set_speed, self.tau1, grace, self._cfg,
-                   self.lead_prev, self.last_change, self.neg_since, fl, bo)
+        fl = np.empty((K.N_FLOAT + 1, n))  # criteria rows, then the time (K.F_T)
+        bo = np.empty((K.N_BOOL, n), dtype=bool)
+        default = type(self.reward_fn) is CriteriaReward
+        terms_arr = np.empty((len(K.TERMS), n))
+        reward = np.empty(n)
+        lat = w.lateral
+        K.step(a_all, w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1, lat.t_start, lat.duration,
+               w.lengths, w.width, float(w.road.lane_width), w.collided, w.sensor_range, F, I, obs_all,
+               self.set_speed, self.tau1, grace, self._cfg, self.lead_prev, self.last_change, self.neg_since,
+               fl, bo, default, float(cfg.a_x_comfort), self.reward_fn._w if default else self._cfg, terms_arr,
+               reward)
+        w.adopt(F, I, obs_all)
         q, gs, collision, violation = fl[K.F_Q], fl[K.F_GS], bo[K.B_COLLISION], bo[K.B_VIOLATION]
-        if type(self.reward_fn) is CriteriaReward:  # the default: straight from the criteria rows
-            reward, terms = self.reward_fn.from_criteria(fl, bo, self.set_speed, self.tau1, cfg.a_x_comfort)
+        if default:
+            terms = dict(zip(K.TERMS, terms_arr))
         else:
             ind = StepIndicators(v=fl[K.F_V], a=fl[K.F_A], jerk=fl[K.F_JERK], set_speed=self.set_speed,
                                  has_lead=bo[K.B_HAS], gap=fl[K.F_GAP], gap_safe=gs, q=q, in_band=bo[K.B_IN_BAND],
@@ -180,23 +200,39 @@ class EpisodeBatch:
                                  v_lead=fl[K.F_VLEAD], tau1=self.tau1)
             reward, terms = self.reward_fn(ind)
             reward = np.asarray(reward, dtype=float)
+            if reward.shape != (n,):
+                reward = np.broadcast_to(reward, (n,)).copy()
+            terms_arr = None
         if active is None:
             active = ~self.done
-        terminated, truncated = np.empty(self.n, dtype=bool), np.empty(self.n, dtype=bool)
-        rows, ended = np.empty(self.n, dtype=np.int64), np.empty(self.n, dtype=np.int64)
-        n_rows, n_ended = K.settle(active, reward, bo, w.k, self.steps, self.config.terminate_on_violation,
-                                   self.episode_return, terminated, truncated, rows, ended)
-        rows, ended = rows[:n_rows], ended[:n_ended]
-        self._record(rows)
-        fallbacks = sum(slot.fallbacks for slot in self.slots)
-        modes = np.full((self.n, len(self.slots)), -1, dtype=np.int64)
-        for j, slot in enumerate(self.slots):
-            if "mode" in slot.info:
-                modes[:, j] = slot.info["mode"]
-        info = {"t": t.copy(), "q": q, "g": q, "gap_safe": gs, "a_applied": fl[K.F_A], "violation": violation,
+        terminated, truncated = np.empty((2, n), dtype=bool)
+        rows, ended = np.empty((2, n), dtype=np.int64)
+        if self.obs_bounds is not None:
+            low, high = self.obs_bounds
+            obs = np.empty((n, low.shape[0]), dtype=np.float32)
+        else:
+            low = high = self._no_bounds
+            obs = np.empty((0, 1), dtype=np.float32)
+        n_rows, n_ended = K.finish(active, reward, bo, w.k, self.steps, self.config.terminate_on_violation,
+                                   self.episode_return, terminated, truncated, rows, ended, fl, F, I, self._ego_width,
+                                   self.lane_width, self.n_lanes, self._rec_arr, obs_all, self.set_speed,
+                                   self.time_gap, float(self.config.sensor_range), bool(self.config.v2v), low, high,
+                                   obs)
+        self.last_obs = obs if obs.shape[0] else None
+        self.last_rows = (fl, bo, terms_arr)  # the step's criteria rows (and default reward terms) as arrays
+        ended = ended[:n_ended]
+        slots = self.slots
+        fallbacks = slots[0].fallbacks + slots[1].fallbacks if len(slots) == 2 else sum(s.fallbacks for s in slots)
+        modes = np.full((n, len(slots)), -1, dtype=np.int64)
+        for j, slot in enumerate(slots):
+            mode = slot.info.get("mode")
+            if mode is not None:
+                modes[:, j] = mode
+        info = {"t": fl[K.F_T], "q": q, "g": q, "gap_safe": gs, "a_applied": fl[K.F_A], "violation": violation,
                 "modes": modes, "fallbacks": fallbacks, "rewards": terms}
-        info["final"] = {int(r): self._final(int(r)) for r in ended}
-        self.done[ended] = True
+        info["final"] = {int(r): self._final(int(r)) for r in ended} if n_ended else {}
+        if n_ended:
+            self.done[ended] = True
         return reward, terminated, truncated, info
 
     def _final(self, row: int) -> dict:

@@ -13,6 +13,12 @@ reward 0, not terminated or truncated), drawing its next scenario from its own g
 environments step for step. Infos are arrays over the environments with ``_key`` masks;
 ``score``, ``qualified``, ``report`` (an object array of dicts) and ``episode_return`` are
 set where an episode ended; ``scenario`` and ``scenario_seed`` where one started.
+
+``workers=k`` (default 1) splits the environments over ``k`` worker processes, one
+in-process vector env each (:mod:`acc_gym.envs.shards`): the same results, on ``k``
+cores. ``workers_context`` picks the ``multiprocessing`` start method (default
+``"fork"`` where available, see :mod:`acc_gym.envs.shards`). Call ``close()`` when done (the workers are daemons and also end with the
+program).
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ from acc_gym.envs.acc_env import action_to_accel, check_actions, make_config, ob
 from acc_gym.envs.config import EnvConfig, ScenarioSampler
 from acc_gym.envs.core import EpisodeBatch
 from acc_gym.envs.reward import CriteriaReward
+from acc_gym.envs.shards import Shards, merge_infos, split
 from acc_gym.scenarios.registry import build
 from acc_gym.scenarios.spec import Scenario
 
@@ -40,10 +47,13 @@ class ACCVectorEnv(VectorEnv):
 
     def __init__(self, num_envs: int = 1, config: EnvConfig | dict | None = None, *, scenario_generator=None,
                  reward_fn=None, render_mode: str | None = None, mpc_settings=None, default_scenarios=None,
-                 **settings):
+                 workers: int = 1, workers_context: str | None = None, **settings):
         if int(num_envs) != num_envs or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or not 1 <= workers <= num_envs:
+            raise ValueError(f"workers must be an integer from 1 to num_envs={num_envs}, got {workers!r}")
         self.num_envs = int(num_envs)
+        self.workers = int(workers)
         self.config = make_config(config, settings, default_scenarios)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be 'rgb_array' or None for the vector env, got {render_mode!r}")
@@ -52,16 +62,23 @@ class ACCVectorEnv(VectorEnv):
         self.single_observation_space = observation_space(self.config)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self.core = EpisodeBatch(self.num_envs, self.config, scenario_generator or ScenarioSampler(self.config),
-                                 reward_fn or CriteriaReward(), mpc_settings)
-        self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
         self._autoreset = np.zeros(self.num_envs, dtype=bool)
         self._started = False
+        self._shards = None
+        if self.workers > 1:
+            self.core = None
+            self._shards = Shards(split(self.num_envs, self.workers),
+                                  {"config": self.config, "scenario_generator": scenario_generator,
+                                   "reward_fn": reward_fn, "render_mode": render_mode, "mpc_settings": mpc_settings},
+                                  workers_context)
+            return
+        self.core = EpisodeBatch(self.num_envs, self.config, scenario_generator or ScenarioSampler(self.config),
+                                 reward_fn or CriteriaReward(), mpc_settings)
+        space = self.single_observation_space
+        self.core.obs_bounds = self._bounds = (space.low.astype(float), space.high.astype(float))
+        self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
 
     def _obs(self) -> np.ndarray:
-        if not hasattr(self, "_bounds"):
-            space = self.single_observation_space
-            self._bounds = (space.low.astype(float), space.high.astype(float))
         return self.core.observe(*self._bounds, dtype=np.float32)
 
     def _reset_rows(self, rows, scenarios=None) -> dict:
@@ -84,14 +101,21 @@ class ACCVectorEnv(VectorEnv):
             seeds = list(seed)
             if len(seeds) != self.num_envs:
                 raise ValueError(f"reset(seed=...) needs {self.num_envs} seeds, got {len(seeds)}")
-        self._rngs = [seeding.np_random(s)[0] for s in seeds]
         options = dict(options or {})
         scenarios = options.pop("scenarios", None)
         if options:
             raise ValueError(f"unknown reset option(s) {sorted(options)}; known: ['scenarios']")
+        if scenarios is not None and len(scenarios) != self.num_envs:
+            raise ValueError(f"options['scenarios'] needs {self.num_envs} entries, got {len(scenarios)}")
+        if self._shards is not None:
+            ranges = self._shards.ranges
+            outs = self._shards.call("reset", [(seeds[a:b], None if scenarios is None else
+                                                {"scenarios": list(scenarios[a:b])}) for a, b in ranges])
+            self._autoreset[:] = False
+            self._started = True
+            return np.concatenate([o for o, _ in outs]), merge_infos([i for _, i in outs], self._shards.sizes)
+        self._rngs = [seeding.np_random(s)[0] for s in seeds]
         if scenarios is not None:
-            if len(scenarios) != self.num_envs:
-                raise ValueError(f"options['scenarios'] needs {self.num_envs} entries, got {len(scenarios)}")
             scenarios = [build(s, seed=int(self._rngs[i].integers(0, 2 ** 31 - 1)), drivers=self.config.drivers)
                          if isinstance(s, str) else s for i, s in enumerate(scenarios)]
             for s in scenarios:
@@ -107,6 +131,11 @@ class ACCVectorEnv(VectorEnv):
     def step(self, actions):
         if not self._started:
             raise RuntimeError("call reset() before step()")
+        if self._shards is not None:
+            a = check_actions(actions, (self.num_envs, 1))
+            outs = self._shards.call("step", [a[lo:hi] for lo, hi in self._shards.ranges])
+            obs, reward, term, trunc = (np.concatenate([o[j] for o in outs]) for j in range(4))
+            return obs, reward, term, trunc, merge_infos([o[4] for o in outs], self._shards.sizes)
         a = check_actions(actions, (self.num_envs, 1))[:, 0]
         resetting = np.flatnonzero(self._autoreset)
         active = ~self._autoreset
@@ -141,12 +170,17 @@ class ACCVectorEnv(VectorEnv):
             infos["t"][resetting] = 0.0
             infos["_t"][resetting] = True
         self._autoreset = term | trunc
-        return self._obs(), reward, term, trunc, infos
+        # the step's observations, unless some scenes restarted since (then all are made afresh)
+        return (self._obs() if resetting.size else self.core.last_obs), reward, term, trunc, infos
 
     def reset_ended(self) -> tuple[np.ndarray, np.ndarray]:
         """Reset now, instead of at the next ``step``, the environments whose episode just ended
         (same-step autoreset, as stable-baselines3's vector envs expect). Returns the indices
         reset and the whole observation batch afterwards."""
+        if self._shards is not None:
+            outs = self._shards.call("reset_ended")
+            rows = np.concatenate([r + lo for (r, _), (lo, _) in zip(outs, self._shards.ranges)])
+            return rows.astype(np.int64), np.concatenate([o for _, o in outs])
         rows = np.flatnonzero(self._autoreset)
         if rows.size:
             self._reset_rows(rows.tolist())
@@ -156,4 +190,10 @@ class ACCVectorEnv(VectorEnv):
     def render(self):
         if self.render_mode is None:
             return None
+        if self._shards is not None:
+            return tuple(frame for frames in self._shards.call("render") for frame in frames)
         return tuple(self.core.frame(b) for b in range(self.num_envs))
+
+    def close_extras(self, **kwargs) -> None:
+        if self._shards is not None:
+            self._shards.close()

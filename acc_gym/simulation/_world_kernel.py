@@ -130,3 +130,76 @@ def observe_all(v, a, lead, gap, lead2, gap2, sensor_range, out):  # pragma: no 
             j2 = lead2[b, s]
             out[s, 6, b] = v[b, j2] if j2 >= 0 else 0.0
             out[s, 7, b] = a[b, j2] if j2 >= 0 else 0.0
+
+
+@numba.njit(cache=True, error_model="numpy")
+def move(a_des, present, x, v, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
+         sensor_range, F, I, obs, t):  # pragma: no cover - compiled
+    """:meth:`~acc_gym.simulation.single_lane.SingleLaneWorld.move` and the next state's
+    :func:`observe_all` in one call: :func:`advance`, ``k += 1``, the times ``t = k dt``,
+    :func:`refresh` with collision marking. Outputs in ``F`` (x, v, a, a_des, y, a_y, gap,
+    gap2), ``I`` (lead, lead2), ``obs`` and ``t`` (see ``SingleLaneWorld.move_buffers``)."""
+    advance(a_des, present, x, v, vp, dt, F[0], F[1], F[2], F[3])
+    for b in range(k.shape[0]):
+        k[b] += 1
+        t[b] = k[b] * dt
+    refresh(t, y0, y1, t_start, duration, F[0], lengths, present, width, lane_width, F[4], F[5], I[0], F[6], I[1],
+            F[7], collided, True)
+    observe_all(F[1], F[2], I[0], F[6], I[1], F[7], sensor_range, obs)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def place(rows, x0, v0, a0, present, lengths, width, y0, y1, t_start, duration,
+          X0, V0, A0, PRESENT, LENGTHS, WIDTH, LY0, LY1, LT, LD, k, x, v, a, a_des, collided):  # pragma: no cover
+    """Start scenes ``rows`` afresh (the body of ``SingleLaneWorld.reset_rows`` for inputs
+    already shaped ``(len(rows), S)``): first checks every initial position, speed,
+    acceleration, length and width is finite and every speed >= 0 and returns False,
+    changing nothing, if not (the caller then takes the reference path, which names the
+    bad value); else writes the rows of the world's arrays (capitals) and returns True."""
+    m, S = x0.shape
+    for r in range(m):
+        for s in range(S):
+            if not (math.isfinite(x0[r, s]) and math.isfinite(v0[r, s]) and v0[r, s] >= 0.0
+                    and math.isfinite(a0[r, s]) and math.isfinite(lengths[r, s]) and math.isfinite(width[r, s])):
+                return False
+    for r in range(m):
+        b = rows[r]
+        k[b] = 0
+        for s in range(S):
+            X0[b, s] = x0[r, s]
+            V0[b, s] = v0[r, s]
+            A0[b, s] = a0[r, s]
+            PRESENT[b, s] = present[r, s]
+            LENGTHS[b, s] = lengths[r, s]
+            WIDTH[b, s] = width[r, s]
+            LY0[b, s] = y0[r, s]
+            LY1[b, s] = y1[r, s]
+            LT[b, s] = t_start[r, s]
+            LD[b, s] = duration[r, s]
+            x[b, s] = x0[r, s]
+            v[b, s] = v0[r, s] if present[r, s] else 0.0
+            a[b, s] = a0[r, s] if present[r, s] else 0.0
+            a_des[b, s] = np.nan
+            collided[b, s] = False
+    return True
+
+
+@numba.njit(cache=True, error_model="numpy")
+def first_overlap(rows, x, y, present, width, lengths, lane_width):  # pragma: no cover - compiled
+    """``(r, i, j)`` of the first pair of vehicles (in row-major order over ``rows``, ``i``,
+    ``j``) that share a lane corridor and overlap lengthwise, or ``(-1, -1, -1)``: the test
+    of ``SingleLaneWorld._check_apart``, which then raises naming them."""
+    S = x.shape[1]
+    for r in range(rows.shape[0]):
+        b = rows[r]
+        for i in range(S):
+            for j in range(S):
+                if i == j or not (present[b, i] and present[b, j]):
+                    continue
+                if not (abs(y[b, j] - y[b, i]) < 0.5 * (lane_width + width[b, j])):
+                    continue
+                rear_i = x[b, i] - lengths[b, i]
+                rear_j = x[b, j] - lengths[b, j]
+                if rear_i < x[b, j] and rear_j < x[b, i]:
+                    return r, i, j
+    return -1, -1, -1

@@ -247,9 +247,33 @@ class SingleLaneWorld:
     def reset_rows(self, rows, x0, v0, *, present=None, lateral: LateralPlan | None = None, lengths=None,
                    width=None, a0=None) -> None:
         """Start scenes ``rows`` afresh with new initial states (arrays ``(len(rows), S)``); the
-        other scenes are untouched. The caller restarts those scenes' driver models."""
+        other scenes are untouched. The caller restarts those scenes' driver models.
+
+        Inputs that are already float arrays ``(len(rows), S)`` (what
+        :func:`acc_gym.scenarios.world.scene_arrays` gives, with a :class:`LateralPlan`)
+        take one compiled pass (:func:`acc_gym.simulation._world_kernel.place` and
+        :func:`~acc_gym.simulation._world_kernel.first_overlap`) that writes the same
+        values; anything else, or any invalid value, takes the numpy path below, which
+        names what is wrong."""
         rows = np.atleast_1d(np.asarray(rows, dtype=np.int64))
         m = rows.size
+        shape = (m, self.S)
+        args = (x0, v0, a0, lengths, width)
+        if (lateral is not None and present is not None and type(present) is np.ndarray and present.shape == shape
+                and present.dtype == np.bool_ and all(type(arg) is np.ndarray and arg.shape == shape
+                                                     and arg.dtype == np.float64 for arg in args if arg is not None)):
+            lat, plan = self.lateral, lateral
+            plan_arrays = [np.broadcast_to(getattr(plan, f), shape) for f in ("y0", "y1", "t_start", "duration")]
+            zeros = np.zeros(shape)
+            if _K.place(rows, x0, v0, zeros if a0 is None else a0, present,
+                        self.lengths[rows] if lengths is None else lengths, self.width[rows] if width is None else width,
+                        *plan_arrays, self.x0, self.v0, self.a0, self.present, self.lengths, self.width, lat.y0,
+                        lat.y1, lat.t_start, lat.duration, self.k, self.x, self.v, self.a, self.a_des, self.collided):
+                self._refresh(mark=False)
+                if _K.first_overlap(rows, self.x, self.y, self.present, self.width, self.lengths,
+                                    float(self.road.lane_width))[0] >= 0:
+                    self._check_apart(rows)  # raises, naming the pair
+                return
         x0 = _as_bs(x0, m, self.S, "x0")
         v0 = _as_bs(v0, m, self.S, "v0")
         check_nonnegative("v0", v0)
@@ -314,6 +338,11 @@ class SingleLaneWorld:
         ``ego_a_des`` [m/s^2], shape ``(B,)`` (or scalar), is the ego's desired
         acceleration; it is required when slot 0 has no model.
         """
+        self.move(self.decide(ego_a_des))
+
+    def decide(self, ego_a_des=None) -> np.ndarray:
+        """Phase one of :meth:`step`: every model's desired acceleration ``(B, S)`` [m/s^2]
+        from the current snapshot (slot 0 ``ego_a_des`` when given); nothing moves."""
         a_des = np.zeros((self.B, self.S))
         for s, model in enumerate(self.drivers):
             if s == 0 and ego_a_des is not None:
@@ -327,12 +356,36 @@ class SingleLaneWorld:
                 a_des[:, s] = model.act(self.observe(s))
             elif s == 0:
                 raise ValueError("the ego has no model: pass ego_a_des to step()")
+        return a_des
+
+    def move(self, a_des: np.ndarray) -> None:
+        """Phase two of :meth:`step`: Eq. (3) and exact integration of every vehicle for the
+        desired accelerations ``a_des`` ``(B, S)`` (from :meth:`decide`), then the lateral
+        positions, neighbours and collision flags of the new state."""
         x, v, a, applied_des = np.empty((4, self.B, self.S))  # fresh arrays (one allocation): callers may keep the old
         # Eq. (3) and exact integration (acc_gym.vehicle.applied_acceleration / integrate, compiled)
         _K.advance(a_des, self.present, self.x, self.v, self._vp, self.dt, x, v, a, applied_des)
         self.x, self.v, self.a, self.a_des = x, v, a, applied_des
         self.k += 1
         self._refresh(mark=True)
+
+    def move_buffers(self) -> tuple:
+        """Fresh output arrays for one :meth:`move` done by a caller's compiled kernel
+        (:func:`acc_gym.simulation._world_kernel.move`): ``(F, I, obs)`` with ``F``
+        ``(8, B, S)`` floats (x, v, a, a_des, y, a_y, gap, gap2), ``I`` ``(2, B, S)`` ints
+        (lead, lead2) and ``obs`` ``(S, 8, B)`` (:meth:`observation_array`'s). Hand them to
+        :meth:`adopt` afterwards."""
+        B, S = self.B, self.S
+        return np.empty((8, B, S)), np.empty((2, B, S), dtype=np.int64), np.empty((S, len(_K.OBS_FIELDS), B))
+
+    def adopt(self, F: np.ndarray, I: np.ndarray, obs: np.ndarray) -> None:
+        """Take the state a compiled :func:`~acc_gym.simulation._world_kernel.move` wrote into
+        :meth:`move_buffers` (``k`` and the collision flags it updated in place): what
+        :meth:`move` leaves, without its separate kernel calls."""
+        self.x, self.v, self.a, self.a_des, self.y, self.a_y, gap, gap2 = F
+        self.neighbours = Neighbours(lead=I[0], gap=gap, lead2=I[1], gap2=gap2)
+        obs.setflags(write=False)
+        self._obs = obs
 
     def driver_info(self, slot: int) -> dict:
         model = self.drivers[slot]

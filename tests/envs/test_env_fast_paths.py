@@ -133,3 +133,62 @@ def test_default_reward_fast_path_equals_the_indicators_path_end_to_end():
             assert a[1] == b[1] and a[2:4] == b[2:4]
             assert a[4]["rewards"] == b[4]["rewards"]
             assert a[4].get("episode_return") == b[4].get("episode_return")
+
+
+def reference_step(core, a_des, active=None):
+    """:meth:`EpisodeBatch.step` as separate calls (the world's own step, then the criteria,
+    reward, settle, record and observe kernels one by one): what the fused kernels replace."""
+    w = core.world
+    a_prev = w.a[:, 0].copy()
+    w.step(a_des)
+    t = w.t
+    cfg = core.config.scoring
+    grace = core._grace if core._grace is not None else core.tau1
+    fl = np.empty((K.N_FLOAT, core.n))
+    bo = np.empty((K.N_BOOL, core.n), dtype=bool)
+    nb = w.neighbours
+    K.criteria(t, w.v, w.a, nb.lead, nb.gap, a_prev, w.dt, core.set_speed, core.tau1, grace, core._cfg,
+               core.lead_prev, core.last_change, core.neg_since, fl, bo)
+    reward, terms = core.reward_fn.from_criteria(fl, bo, core.set_speed, core.tau1, cfg.a_x_comfort)
+    active = ~core.done if active is None else active
+    term, trunc = np.empty(core.n, dtype=bool), np.empty(core.n, dtype=bool)
+    rows, ended = np.empty(core.n, dtype=np.int64), np.empty(core.n, dtype=np.int64)
+    n_rows, n_ended = K.settle(active, reward, bo, w.k, core.steps, core.config.terminate_on_violation,
+                               core.episode_return, term, trunc, rows, ended)
+    core._record(rows[:n_rows])
+    obs = core.observe(*core.obs_bounds, dtype=np.float32)
+    final = {int(r): core._final(int(r)) for r in ended[:n_ended]}
+    core.done[ended[:n_ended]] = True
+    return obs, reward, term, trunc, {"t": t, "q": fl[K.F_Q], "gap_safe": fl[K.F_GS], "a_applied": fl[K.F_A],
+                                      "violation": bo[K.B_VIOLATION], "rewards": terms, "final": final}
+
+
+@pytest.mark.parametrize("env_id", ["acc_gym/SingleLane-v0", "acc_gym/NCAP-v0"])
+def test_fused_core_step_equals_the_separate_kernels(env_id):
+    """The core's two-call step (``_kernel.step`` + ``_kernel.finish``) equals the world's
+    step followed by the separate kernels, bit for bit, over episodes and restarts of 6 scenes."""
+    cores = [gymnasium.make_vec(env_id, num_envs=6, vectorization_mode="vector_entry_point").unwrapped.core
+             for _ in range(2)]
+    rngs = [[np.random.default_rng(s) for s in range(6)] for _ in range(2)]
+    for core, r in zip(cores, rngs):
+        core.reset_rows(range(6), r)
+    fused, ref = cores
+    act = np.random.default_rng(9)
+    n_final = 0
+    for _ in range(150):
+        a = act.uniform(-6.0, 3.0, 6)
+        r1, te1, tr1, i1 = fused.step(a)
+        o2, r2, te2, tr2, i2 = reference_step(ref, a)
+        assert np.array_equal(fused.last_obs, o2)
+        assert np.array_equal(r1, r2) and np.array_equal(te1, te2) and np.array_equal(tr1, tr2)
+        for key in ("t", "q", "gap_safe", "a_applied", "violation"):
+            assert np.array_equal(i1[key], i2[key]), key
+        assert all(np.array_equal(i1["rewards"][k], i2["rewards"][k]) for k in K.TERMS)
+        assert i1["final"] == i2["final"]
+        n_final += len(i1["final"])
+        assert np.array_equal(fused._rec_arr, ref._rec_arr)
+        for core, r in zip(cores, rngs):
+            ended = np.flatnonzero(core.done)
+            if ended.size:
+                core.reset_rows(ended, [r[i] for i in ended])
+    assert n_final >= 6  # episodes ended (and restarted) along the way

@@ -445,3 +445,95 @@ def test_observe_all_called_directly():
         np.testing.assert_array_equal(out[s], np.array(expect))
     hidden_first = np.isfinite(gap) & (gap > 40.0) & (gap2 <= 40.0)
     assert hidden_first.sum() > 2 and np.all(np.isinf(out[:, 5, :].T[hidden_first]))
+
+
+# ----------------------------------------------------------------------------- fused move, compiled reset
+@pytest.mark.parametrize("seed", range(4))
+def test_fused_move_equals_move(seed):
+    """``decide`` + the one-call ``_world_kernel.move`` + ``adopt`` (the environment core's
+    path) leave exactly the state ``step`` (``decide`` + ``move``) leaves, step after step."""
+    worlds = []
+    for _ in range(2):
+        w = make_world(3)
+        randomise(w, np.random.default_rng(seed))
+        worlds.append(w)
+    ref, fused = worlds
+    rng = np.random.default_rng(100 + seed)
+    for _ in range(25):
+        a = rng.uniform(-9.0, 4.0, size=(B, 3))
+        for w in worlds:
+            for s in (1, 2):
+                w.drivers[s].a = a[:, s].copy()
+        ref.step(a[:, 0])
+        a_all = fused.decide(a[:, 0])
+        F, I, obs = fused.move_buffers()
+        t = np.empty(B)
+        lat = fused.lateral
+        K.move(a_all, fused.present, fused.x, fused.v, fused._vp, fused.dt, fused.k, lat.y0, lat.y1, lat.t_start,
+               lat.duration, fused.lengths, fused.width, float(fused.road.lane_width), fused.collided,
+               fused.sensor_range, F, I, obs, t)
+        fused.adopt(F, I, obs)
+        assert np.array_equal(t, ref.t)
+        for name in ("x", "v", "a", "y", "a_y", "k", "collided"):
+            assert np.array_equal(getattr(fused, name), getattr(ref, name)), name
+        assert np.array_equal(fused.a_des, ref.a_des, equal_nan=True)
+        for name in ("lead", "gap", "lead2", "gap2"):
+            assert np.array_equal(getattr(fused.neighbours, name), getattr(ref.neighbours, name)), name
+        for s in range(3):
+            assert np.array_equal(fused.observation_array(s), ref.observation_array(s))
+        assert not fused.observation_array(0).flags.writeable
+    assert ref.collided.any() and (ref.neighbours.lead >= 0).any()  # the states exercised collisions and leads
+
+
+def test_compiled_reset_rows_equals_the_numpy_path():
+    """Array inputs take the compiled ``place``; the same values as lists take the numpy
+    path; both leave the same world (other scenes untouched)."""
+    rng = np.random.default_rng(5)
+    worlds = [make_world(3, B=6) for _ in range(2)]
+    for w in worlds:
+        randomise(w, np.random.default_rng(7), moving=False)
+    rows = np.array([1, 4])
+    x0 = np.array([[0.0, 30.0, 80.0], [5.0, 25.0, 60.0]])
+    v0 = rng.uniform(0.0, 30.0, (2, 3))
+    a0 = rng.uniform(-1.0, 1.0, (2, 3))
+    present = np.array([[True, True, False], [True, True, True]])
+    lengths = np.array([[4.5, 4.7, 5.0], [4.2, 4.8, 4.6]])
+    width = np.array([[1.8, 1.9, 2.0], [1.7, 1.8, 1.9]])
+    plan = LateralPlan(np.zeros((2, 3)), np.array([[0.0, 3.75, 0.0], [0.0, 0.0, 3.75]]),
+                       np.array([[0.0, 2.0, 0.0], [0.0, 0.0, 1.0]]), np.full((2, 3), 4.0))
+    fast, slow = worlds
+    fast.reset_rows(rows, x0, v0, present=present, lateral=plan, lengths=lengths, width=width, a0=a0)
+    slow.reset_rows(rows.tolist(), x0.tolist(), v0.tolist(), present=present.tolist(), lateral=plan,
+                    lengths=lengths.tolist(), width=width.tolist(), a0=a0.tolist())
+    for name in ("x0", "v0", "a0", "present", "lengths", "width", "x", "v", "a", "k", "collided", "y", "a_y"):
+        assert np.array_equal(getattr(fast, name), getattr(slow, name)), name
+    assert np.array_equal(fast.a_des, slow.a_des, equal_nan=True)
+    for f in ("y0", "y1", "t_start", "duration"):
+        assert np.array_equal(getattr(fast.lateral, f), getattr(slow.lateral, f)), f
+    for name in ("lead", "gap", "lead2", "gap2"):
+        assert np.array_equal(getattr(fast.neighbours, name), getattr(slow.neighbours, name)), name
+    assert np.array_equal(fast.v[1], np.where(present[0], v0[0], 0.0))  # absent vehicles stand still
+    assert np.isnan(fast.a_des[rows]).all() and (fast.k[rows] == 0).all()
+
+
+@pytest.mark.parametrize("field, value, match", [("x0", np.nan, "x0"), ("v0", -1.0, "v0"), ("lengths", np.inf, "lengths")])
+def test_compiled_reset_rows_names_a_bad_value(field, value, match):
+    w = make_world(3, B=2)
+    args = {"x0": np.array([[0.0, 30.0, 80.0]]), "v0": np.full((1, 3), 10.0), "lengths": np.full((1, 3), 4.7)}
+    args[field][0, 1] = value
+    with pytest.raises(ValueError, match=match):
+        w.reset_rows([1], args["x0"], args["v0"], present=np.ones((1, 3), bool), lateral=LateralPlan.still(np.zeros((1, 3))),
+                     lengths=args["lengths"], width=np.full((1, 3), 1.8))
+
+
+def test_compiled_reset_rows_names_overlapping_vehicles():
+    w = make_world(3, B=2)
+    with pytest.raises(ValueError, match="slots 1 and 2 overlap"):
+        w.reset_rows([0], np.array([[0.0, 30.0, 32.0]]), np.full((1, 3), 10.0), present=np.ones((1, 3), bool),
+                     lateral=LateralPlan.still(np.zeros((1, 3))), lengths=np.full((1, 3), 4.7),
+                     width=np.full((1, 3), 1.8))
+    # in different lanes they may overlap lengthwise
+    w.reset_rows([0], np.array([[0.0, 30.0, 32.0]]), np.full((1, 3), 10.0), present=np.ones((1, 3), bool),
+                 lateral=LateralPlan.still(np.array([[0.0, 0.0, 3.75]])), lengths=np.full((1, 3), 4.7),
+                 width=np.full((1, 3), 1.8))
+    assert w.neighbours.lead[0, 0] == 1 and w.neighbours.lead[0, 1] == -1
