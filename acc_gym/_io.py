@@ -41,7 +41,18 @@ def atomic_write(path, data: str | bytes | Callable) -> Path:
 
 
 def json_safe(x):
-    """NaN -> None, infinities -> their string (``"inf"``), numpy scalars -> Python, recursively."""
+    """NaN -> None, infinities -> their string (``"inf"``), numpy scalars -> Python, recursively.
+
+    Plain Python floats, ints, bools, strings and None (most of a report) are recognised
+    by their exact type first; everything else takes the general checks below, which
+    give the same result for them."""
+    t = type(x)
+    if t is float:
+        return None if x != x else (str(x) if x - x != 0.0 else x)  # NaN; +-inf (inf - inf is NaN)
+    if t is int or t is bool or t is str or x is None:
+        return x
+    if t is dict:
+        return {str(k): json_safe(v) for k, v in x.items()}
     if isinstance(x, dict):
         return {str(k): json_safe(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):

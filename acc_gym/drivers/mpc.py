@@ -79,7 +79,7 @@ import numpy as np
 from acc_gym._validation import check_finite
 from acc_gym.drivers import _mpc_kernel as K
 from acc_gym.drivers.base import Observation
-from acc_gym.drivers.qp import Horizon, condensed_qp, make_backend, terminal_chords
+from acc_gym.drivers.qp import K_TERM, Horizon, condensed_qp, make_backend, terminal_chords
 from acc_gym.vehicle import VehicleParams, accel_lower
 
 
@@ -448,6 +448,8 @@ class MPCDriver:
                 if target is not None:
                     value = values[name]
                     target[i] = limit if value is None else value
+            self._install(i)
+            return
         else:
             new = params.broadcast(idx.size)
             for f in fields(MPCDriverParams):
@@ -482,6 +484,46 @@ class MPCDriver:
         self._PA[idx] = 0.0
         self._W[idx] = 0.0
         self._W[idx, K.W_PATH] = -1
+
+    def _install(self, i: int) -> None:
+        """The rest of :meth:`set_params` for one driver ``i`` whose parameters are already in
+        :attr:`params`: the same rows written with Python floats instead of small arrays
+        (the terminal chords by :func:`~acc_gym.drivers.qp.terminal_chords`'s operations in
+        its order, so the same bits; ``tests/drivers/test_fast_paths.py`` checks it)."""
+        p, s = self.params, self.settings
+        limit_col = p.v_desired if p.v_max is None else p.v_max  # speed_limit, without its array copy
+        row = [float((limit_col if c == "v_max" else getattr(p, c))[i]) for c in _PARAM_COLUMNS]
+        b = -float(p.a_min[i])
+        jerk = float(p.jerk_max[i])
+        limit = row[_PARAM_COLUMNS.index("v_max")]
+        w = [limit * k / K_TERM for k in range(K_TERM + 1)]
+        f = [x * x / (2.0 * b) + x * b / (2.0 * jerk) for x in w]
+        beta = [(f[k + 1] - f[k]) / (w[k + 1] - w[k]) for k in range(K_TERM)]
+        alpha = [f[k] - beta[k] * w[k] for k in range(K_TERM)]
+        self._alpha[i], self._beta[i] = alpha, beta
+        P = self._P[i]
+        P[:len(row)] = row
+        P[-2 * K_TERM:] = alpha + beta
+        q1, q2, r1, c_tg, r_jerk = (float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]),
+                                    float(p.r_jerk[i]))
+        qf = condensed_qp(q1, q2, r1, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk)
+        qc = condensed_qp(0.0, q2, r1, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk)
+        self._qp_follow[i], self._qp_cruise[i] = qf, qc
+        self._gain_f[i] = qf.gain
+        self._gain_c[i] = qc.gain[:, 1:]
+        self._H[i, 0] = qf.hinv_sums
+        self._H[i, 1] = qc.hinv_sums
+        if s.use_lead_accel:
+            self._GL[i] = qf.gain_lead_sums
+        if self._backends:
+            for key in [k for k in self._backends if k[0] == i]:
+                del self._backends[key]
+                self._last_used.pop(key, None)
+        self._I[i] = 0
+        self._PA[i] = 0.0
+        W = self._W[i]
+        W[:] = 0.0
+        W[K.W_PATH] = -1
 
     def __getstate__(self):
         state = self.__dict__.copy()
@@ -570,6 +612,22 @@ class MPCDriver:
                 if value.shape != shape:
                     raise ValueError(f"observation field {name!r} must have shape ({n},), got {value.shape}")
             arrays.append(value)
+        return self._act(arrays)
+
+    def act_rows(self, rows: np.ndarray) -> np.ndarray:
+        """:meth:`act` for an observation given as the rows of one float64 array ``(>= 5, n)``
+        in :class:`~acc_gym.drivers.base.Observation`'s field order (``v, a, gap, v_lead,
+        a_lead, ...``; what :meth:`SingleLaneWorld.observation_array
+        <acc_gym.simulation.single_lane.SingleLaneWorld.observation_array>` gives), with no
+        stop position: the same numbers as ``act(Observation(*rows))``, without building
+        the observation and checking each field's type and shape (a row of such an array
+        has them). The kernel still rejects invalid values, naming the field."""
+        if not (rows.__class__ is np.ndarray and rows.dtype is _F64 and rows.ndim == 2 and rows.shape[0] >= 5
+                and rows.shape[1] == self.n):
+            return self.act(Observation(*rows))
+        return self._act([rows[0], rows[1], rows[2], rows[3], rows[4], self._inf])
+
+    def _act(self, arrays: list) -> np.ndarray:
         W = self._W
         n_hard = self._prepare(self._P, self._S, *arrays, self._gain_f, self._gain_c, self._GL, self._H, self._B,
                                self._PA, W,

@@ -51,6 +51,10 @@ sailing driver eventually brakes instead of stopping short).
 
 from __future__ import annotations
 
+import bisect
+import math
+from dataclasses import fields
+
 import numpy as np
 
 from acc_gym.drivers.mpc import MPCDriverParams
@@ -92,11 +96,18 @@ TABLE_ALL = {
     "A4": np.array([-1.81, -1.08, -0.80, -0.60, -0.03]),
 }
 _LEVELS = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
+_LEVELS_LIST = _LEVELS.tolist()
+_SPEED_BANDS_LIST = SPEED_BANDS.tolist()
 Q1N_RANGE = (0.04, 1.2)  # speed-normalised distance weight, log-uniform (see module docstring)
 Q1_SPEED_REF = 20.0  # [m/s]
 Q1_SPEED_EXPONENT = 2.5
 KINDS = ("typical", "atypical", "malicious")
+_FIELD_NAMES = tuple(f.name for f in fields(MPCDriverParams))
 _DEFAULT_VEHICLE = VehicleParams()  # frozen: shared by every draw that is not given a vehicle
+_LOG_TG = np.log(1.5)  # the log-normal time gap's log median (log [s]), as sample_drivers computes it
+_LOG_Q1N = (np.log(Q1N_RANGE[0]), np.log(Q1N_RANGE[1]))
+_TABLES = {name: table.tolist() for name, table in (("a1", TABLE_A1_MAX_ACCEL), ("a2", TABLE_A2_MAX_DECEL),
+                                                    ("a4", TABLE_A4_SAILING_START))}
 
 
 def speed_band(speed) -> np.ndarray:
@@ -123,6 +134,61 @@ def _levels(rng: np.random.Generator, n: int, kind: str) -> np.ndarray:
     # atypical: either tail
     tail = rng.random(n) < 0.5
     return np.where(tail, rng.uniform(0.0, 0.1, n), rng.uniform(0.9, 1.0, n))
+
+
+def _quantile_one(row: list, p: float) -> float:
+    """:func:`quantile` of one level ``p`` on one table row (Python floats: the same operations)."""
+    idx = min(max(math.floor(p * 4.0), 0), 3)
+    lo, hi = row[idx], row[idx + 1]
+    frac = (p - _LEVELS_LIST[idx]) / 0.25
+    return lo + frac * (hi - lo)
+
+
+def _level_one(rng: np.random.Generator, kind: str) -> float:
+    if kind == "typical":
+        return rng.uniform(0.1, 0.9)
+    tail = rng.random() < 0.5
+    low, high = rng.uniform(0.0, 0.1), rng.uniform(0.9, 1.0)  # both drawn, as _levels does
+    return low if tail else high
+
+
+def sample_driver_values(rng: np.random.Generator, speed: float, kind: str = "typical",
+                         max_tries: int = 50) -> dict[str, float]:
+    """One driver of :func:`sample_drivers` (``n = 1``, the default vehicle) as a dict of
+    Python floats by :class:`~acc_gym.drivers.mpc.MPCDriverParams` field (``v_max`` left
+    out): the same draws from ``rng`` in the same order and the same arithmetic on
+    scalars, so the same numbers as ``sample_drivers(rng, 1, speed, kind)`` without its
+    small-array overhead (a scenario draws one per surrounding vehicle at every reset;
+    ``tests/drivers/test_population.py`` checks the two agree). ``"malicious"`` drivers
+    take :func:`sample_drivers` itself."""
+    speed = float(speed)
+    if kind == "malicious" or not (math.isfinite(speed) and speed > 0):
+        params = sample_drivers(rng, 1, speed, kind, max_tries=max_tries)
+        return {name: float(np.asarray(getattr(params, name), float).reshape(-1)[0]) for name in _FIELD_NAMES
+                if getattr(params, name) is not None}
+    if kind not in KINDS:
+        raise ValueError(f"unknown driver kind {kind!r}; use one of {KINDS}")
+    band = bisect.bisect_right(_SPEED_BANDS_LIST, speed)  # np.searchsorted(..., side="right")
+    a1, a2, a4 = _TABLES["a1"][band], _TABLES["a2"][band], _TABLES["a4"][band]
+    a_max = a_min = a_req_sail = a_sail = 0.0
+    for _ in range(max_tries):
+        a_max = _quantile_one(a1, _level_one(rng, kind))
+        a_min = _quantile_one(a2, _level_one(rng, kind))
+        a_req_sail = _quantile_one(a4, _level_one(rng, kind))
+        a_sail = rng.uniform(-0.5, -0.1)
+        if a_min <= 1.5 * a_req_sail and a_req_sail < a_sail:
+            break
+    a_req_sail = min(a_req_sail, a_sail - 0.05)
+    a_min = min(a_min, 1.5 * a_req_sail)
+    a_max = max(a_max, 0.3)
+    c_tg = min(max(float(np.exp(rng.normal(_LOG_TG, 0.25))), 0.8), 3.0)
+    x_min = rng.uniform(2.0, 4.0)
+    q1 = float(np.exp(rng.uniform(_LOG_Q1N[0], _LOG_Q1N[1])) * np.power(Q1_SPEED_REF / speed, Q1_SPEED_EXPONENT))
+    r1 = rng.uniform(40.0, 45.0)
+    values = {"a_max": a_max, "a_min": a_min, "a_req_sail": a_req_sail, "a_sail": a_sail, "q1": q1, "r1": r1,
+              "q2": 1.0, "c_tg": c_tg, "x_min": x_min, "v_desired": speed, "r_jerk": 0.0, "jerk_max": 2.5,
+              "jerk_emergency": 50.0}
+    return {name: values[name] for name in _FIELD_NAMES if name in values}
 
 
 def sample_drivers(rng: np.random.Generator, n: int, speed, kind: str = "typical",

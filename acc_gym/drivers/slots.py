@@ -16,6 +16,13 @@ one model call per kind and step:
 Each scene's driver depends only on that scene: a scene stepped among ``n`` gives the
 same numbers as the scene stepped alone (what makes a vector environment equal to
 ``n`` single ones).
+
+One :class:`SlotDrivers` can also hold several slots at once (``n = slots x scenes``,
+row ``j * scenes + b`` for slot ``j`` of scene ``b``), so that the MPC drivers of every
+surrounding vehicle are one kernel call per step; :class:`SlotView` then presents slot
+``j`` with the interface of a one-slot :class:`SlotDrivers` (``assign``, ``info``,
+``fallbacks``) and :class:`~acc_gym.simulation.single_lane.SingleLaneWorld` (its
+``joint`` argument) asks the holder for all slots' accelerations at once.
 """
 
 from __future__ import annotations
@@ -96,6 +103,21 @@ class SlotDrivers:
         return self._all_mpc_cached
 
     # ------------------------------------------------------------------ step
+    def act_rows(self, rows: np.ndarray) -> np.ndarray:
+        """:meth:`act` for an observation given as rows of one float64 array (see
+        :meth:`MPCDriver.act_rows <acc_gym.drivers.mpc.MPCDriver.act_rows>`): when every
+        scene's driver is an MPC driver, the batch takes that cheaper path; otherwise
+        :meth:`act` on the :class:`~acc_gym.drivers.base.Observation` of the rows."""
+        if not self._all_mpc():
+            return self.act(Observation(*rows))
+        mpc = self._mpc
+        out = mpc.act_rows(rows)
+        self.fallbacks[:] = mpc.stats_column("fallback")
+        # no clock tick: only profile rows read their clock, and a row becomes one only through
+        # assign(), which restarts its clock (the tick costs as much as the rest of this bookkeeping)
+        self.info = {"mode": mpc.mode.copy()}
+        return out
+
     def act(self, obs: Observation) -> np.ndarray:
         if self._all_mpc():  # the common case (every scene's slot has an MPC driver): no masks
             out = self._mpc.act(obs)
@@ -121,3 +143,54 @@ class SlotDrivers:
         self._clock += 1
         self.info = {"mode": mode}
         return out
+
+
+class SlotView:
+    """Slot ``index`` of a :class:`SlotDrivers` ``joint`` holding several slots of ``n`` scenes
+    each (rows ``index * n .. index * n + n - 1``): what an environment reads and writes of
+    one slot. It does not act on its own -- a world with ``joint=`` asks the holder for
+    every slot at once (acting for one slot would step the other slots' drivers too)."""
+
+    name = "slot"
+
+    def __init__(self, joint: SlotDrivers, index: int, n: int):
+        if not 0 <= index * n < (index + 1) * n <= joint.n:
+            raise ValueError(f"slot {index} of {n} scenes does not fit {joint.n} driver rows")
+        self.joint = joint
+        self.index = int(index)
+        self.n = int(n)
+        self._rows = slice(self.index * self.n, (self.index + 1) * self.n)
+
+    @property
+    def fallbacks(self) -> np.ndarray:
+        """Solver fallbacks of each scene's driver in the current episode (a view)."""
+        return self.joint.fallbacks[self._rows]
+
+    @property
+    def info(self) -> dict[str, np.ndarray]:
+        """The slot's rows of the holder's last diagnostics (e.g. ``"mode"``)."""
+        return {key: value[self._rows] for key, value in self.joint.info.items()}
+
+    @property
+    def _mpc(self):
+        """The holder's batched MPC driver (every slot's rows: index with :attr:`rows`)."""
+        return self.joint._mpc
+
+    @property
+    def rows(self) -> slice:
+        """This slot's rows of the holder."""
+        return self._rows
+
+    def assign(self, row: int, spec) -> None:
+        """Give scene ``row`` of this slot the driver ``spec`` (see :meth:`SlotDrivers.assign`)."""
+        row = int(row)
+        if not 0 <= row < self.n:
+            raise ValueError(f"scene {row} out of range [0, {self.n})")
+        self.joint.assign(self.index * self.n + row, spec)
+
+    def reset(self) -> None:
+        """Restart the holder's drivers (every slot's: idempotent, as each slot's world reset calls it)."""
+        self.joint.reset()
+
+    def act(self, obs):
+        raise RuntimeError("a SlotView does not act alone: step it through a SingleLaneWorld given joint=")

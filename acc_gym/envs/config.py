@@ -107,7 +107,17 @@ class ScenarioSampler:
         self.ids = config.scenarios
         self.p = config.probabilities
         self.drivers = config.drivers
+        # rng.choice(len(ids), p=p) draws one rng.random() and looks it up in p's normalised
+        # cumulative sums; kept here so that each call skips choice's checks of p (a tenth
+        # of a reset's cost), with the same draw and the same index
+        cdf = np.cumsum(np.asarray(self.p, dtype=float))
+        cdf /= cdf[-1]
+        self._cdf = cdf
 
     def __call__(self, rng: np.random.Generator) -> Scenario:
-        sid = self.ids[int(rng.choice(len(self.ids), p=self.p))] if len(self.ids) > 1 else self.ids[0]
+        sid = self.ids[int(self._cdf.searchsorted(rng.random(), side="right"))] if len(self.ids) > 1 else self.ids[0]
         return build(sid, seed=int(rng.integers(0, 2 ** 31 - 1)), drivers=self.drivers)
+
+    def reference_choice(self, rng: np.random.Generator) -> int:
+        """The index ``__call__`` draws, as ``rng.choice`` draws it (the definition it is tested against)."""
+        return int(rng.choice(len(self.ids), p=self.p))

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from acc_gym.drivers.slots import SlotDrivers
+from acc_gym.drivers.slots import SlotDrivers, SlotView
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.config import EnvConfig
 from acc_gym.envs.reward import CriteriaReward, StepIndicators
@@ -37,11 +37,14 @@ class EpisodeBatch:
         self.config = config
         self.generator = generator
         self.reward_fn = reward_fn
-        self.slots = [SlotDrivers(self.n, DT, mpc_settings) for _ in range(SLOTS - 1)]
+        # the drivers of both surrounding slots of every scene in one batch (row j n + b: slot j + 1
+        # of scene b), so that their MPC drivers are one kernel call per step; one view per slot
+        self.drivers = SlotDrivers(self.n * (SLOTS - 1), DT, mpc_settings)
+        self.slots = [SlotView(self.drivers, j, self.n) for j in range(SLOTS - 1)]
         x0 = np.full((self.n, SLOTS), ABSENT_X)
         self.world = SingleLaneWorld(x0, np.zeros((self.n, SLOTS)), [None, *self.slots],
                                      present=np.zeros((self.n, SLOTS), dtype=bool), dt=DT,
-                                     sensor_range=config.sensor_range)
+                                     sensor_range=config.sensor_range, joint=self.drivers)
         self._ego_width = np.ascontiguousarray(self.world.width[:, 0])
         self.scenarios: list[Scenario | None] = [None] * self.n
         self.steps = np.zeros(self.n, dtype=np.int64)
@@ -221,13 +224,10 @@ class EpisodeBatch:
         self.last_obs = obs if obs.shape[0] else None
         self.last_rows = (fl, bo, terms_arr)  # the step's criteria rows (and default reward terms) as arrays
         ended = ended[:n_ended]
-        slots = self.slots
-        fallbacks = slots[0].fallbacks + slots[1].fallbacks if len(slots) == 2 else sum(s.fallbacks for s in slots)
-        modes = np.full((n, len(slots)), -1, dtype=np.int64)
-        for j, slot in enumerate(slots):
-            mode = slot.info.get("mode")
-            if mode is not None:
-                modes[:, j] = mode
+        fb = self.drivers.fallbacks  # (slots x scenes): each slot's rows in turn
+        fallbacks = fb[:n] + fb[n:]  # the two surrounding slots of each scene
+        mode = self.drivers.info.get("mode")
+        modes = mode.reshape(SLOTS - 1, n).T.copy() if mode is not None else np.full((n, SLOTS - 1), -1, np.int64)
         info = {"t": fl[K.F_T], "q": q, "g": q, "gap_safe": gs, "a_applied": fl[K.F_A], "violation": violation,
                 "modes": modes, "fallbacks": fallbacks, "rewards": terms}
         info["final"] = {int(r): self._final(int(r)) for r in ended} if n_ended else {}

@@ -18,12 +18,51 @@ import csv
 from dataclasses import dataclass, fields
 from pathlib import Path
 
+import math
+
+import numba
 import numpy as np
 
 from acc_gym.simulation.single_lane import VEHICLE_WIDTH, Road
 
 REQUIRED_COLUMNS = ("t", "v", "a", "gap", "v_lead")
 OPTIONAL_COLUMNS = ("a_lead", "lead_id", "a_y", "d2", "d3")
+_ARRAY_COLUMNS = REQUIRED_COLUMNS + OPTIONAL_COLUMNS
+_EMPTY = np.empty(0)  # an absent optional column, for _columns_valid
+
+
+@numba.njit(cache=True)
+def _columns_valid(t, v, a, gap, v_lead, a_lead, lead_id, a_y, d2, d3):  # pragma: no cover - compiled
+    """:class:`EgoTrace`'s column checks for float64 columns of one length (an optional column
+    absent: empty): at least 2 samples, nothing NaN, ``gap`` not -inf, ``v_lead`` finite
+    where ``gap`` is finite and +0.0 elsewhere (what the checks would set), every other
+    column finite, ``t`` strictly increasing, ``v`` >= 0."""
+    n = t.shape[0]
+    if n < 2:
+        return False
+    for i in range(n):
+        g = gap[i]
+        if math.isnan(g) or g == -np.inf:
+            return False
+        vl = v_lead[i]
+        if math.isfinite(g):
+            if not math.isfinite(vl):
+                return False
+        elif not (vl == 0.0 and math.copysign(1.0, vl) > 0.0):
+            return False
+        if not (math.isfinite(t[i]) and math.isfinite(v[i]) and math.isfinite(a[i]) and v[i] >= 0.0):
+            return False
+        if i > 0 and not t[i] > t[i - 1]:
+            return False
+    return _all_finite(a_lead) and _all_finite(lead_id) and _all_finite(a_y) and _all_finite(d2) and _all_finite(d3)
+
+
+@numba.njit(cache=True)
+def _all_finite(col):  # pragma: no cover - compiled
+    for i in range(col.shape[0]):
+        if not math.isfinite(col[i]):
+            return False
+    return True
 _LANE_CENTRED = Road(3.75, 1).d2(0.0, VEHICLE_WIDTH)  # [m] D2 = D3 of a lane-centred car, paper 003's road
 
 
@@ -45,6 +84,8 @@ class EgoTrace:
     time_gap: float | None = None  # [s] the scenario's nominal time gap
 
     def __post_init__(self) -> None:
+        if self._valid_as_given():
+            return
         n = None
         for f in fields(self):
             value = getattr(self, f.name)
@@ -82,6 +123,27 @@ class EgoTrace:
             value = getattr(self, name)
             if value is not None and not (np.isfinite(value) and value > 0):
                 raise ValueError(f"trace {name} must be > 0, got {value!r}")
+
+    def _valid_as_given(self) -> bool:
+        """The checks below in one compiled pass (:func:`_columns_valid`), for columns that are
+        already 1-D float64 arrays of one length: True when they pass and the checks would
+        change nothing (every ``v_lead`` without a vehicle ahead is already +0.0), so the
+        columns are kept as given; False sends the trace through the checks, which convert,
+        or raise naming the bad value. Traces of the environments take this path."""
+        cols = [getattr(self, name) for name in _ARRAY_COLUMNS]
+        t = cols[0]
+        if not (type(t) is np.ndarray and t.dtype == np.float64 and t.ndim == 1):
+            return False
+        n = t.shape[0]
+        for c in cols:
+            if c is not None and not (type(c) is np.ndarray and c.dtype == np.float64 and c.shape == (n,)):
+                return False
+        for name in ("set_speed", "time_gap"):
+            value = getattr(self, name)
+            if value is not None and not (np.isfinite(value) and value > 0):
+                return False
+        empty = _EMPTY
+        return bool(_columns_valid(*(empty if c is None else c for c in cols)))
 
     @property
     def n(self) -> int:

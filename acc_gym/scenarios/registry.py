@@ -30,7 +30,7 @@ from typing import Callable
 import numpy as np
 
 from acc_gym.drivers.baselines import MODELS
-from acc_gym.drivers.population import KINDS, sample_drivers
+from acc_gym.drivers.population import KINDS, sample_driver_values
 from acc_gym.scenarios.spec import DriverSpec, Scenario, _finite
 
 DRIVER_CHOICES = (*KINDS, *sorted(MODELS))
@@ -203,8 +203,8 @@ def _law_fields(law) -> list[str]:
 def driver_for(rng: np.random.Generator, drivers: str, speed: float) -> DriverSpec:
     """A surrounding driver cruising at ``speed`` [m/s] of the chosen kind or model."""
     speed = max(float(speed), 0.5)
-    if drivers in KINDS:
-        return DriverSpec.mpc(sample_drivers(rng, 1, speed, drivers))
+    if drivers in KINDS:  # one driver's draws as plain numbers: sample_drivers(rng, 1, ...)'s values, faster
+        return DriverSpec("mpc", sample_driver_values(rng, speed, drivers))
     key = "v_set" if drivers == "acc" else "v_desired"
     return DriverSpec(drivers, {key: speed})
 

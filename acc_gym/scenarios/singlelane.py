@@ -199,14 +199,15 @@ _PROBES = threading.local()  # one probe world per thread and step, reused by ev
 def _probe_world(dt: float):
     """A one-scene world with replaceable surrounding drivers (the environments' slots), kept
     for reuse: building fresh MPC drivers for every pre-simulation cost more than the run."""
-    from acc_gym.drivers.slots import SlotDrivers  # late: the drivers import the scenarios' registry
+    from acc_gym.drivers.slots import SlotDrivers, SlotView  # late: the drivers import the scenarios' registry
     from acc_gym.simulation.single_lane import SingleLaneWorld
 
     worlds = _PROBES.__dict__.setdefault("worlds", {})
     if dt not in worlds:
-        slots = [SlotDrivers(1, dt), SlotDrivers(1, dt)]
-        worlds[dt] = (SingleLaneWorld(np.array([[-1.0e6, -5.0e5, 0.0]]), np.zeros((1, 3)), [None, *slots], dt=dt),
-                      slots)
+        joint = SlotDrivers(2, dt)  # both surrounding slots, one driver call per step (as the environments)
+        slots = [SlotView(joint, 0, 1), SlotView(joint, 1, 1)]
+        worlds[dt] = (SingleLaneWorld(np.array([[-1.0e6, -5.0e5, 0.0]]), np.zeros((1, 3)), [None, *slots], dt=dt,
+                                      joint=joint), slots)
     return worlds[dt]
 
 

@@ -31,6 +31,7 @@ never anyone's target and do not move.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -153,11 +154,16 @@ class SingleLaneWorld:
     dt: step [s].
     sensor_range: vehicles further ahead are not seen (``gap = inf`` in observations).
     a0: initial accelerations [m/s^2].
+    joint: optional model acting for slots ``1 .. S-1`` at once, ``n == B (S - 1)`` with row
+        ``(s - 1) B + b`` for slot ``s`` of scene ``b`` and an ``act_rows`` method (a
+        :class:`~acc_gym.drivers.slots.SlotDrivers` over all surrounding slots, whose
+        :class:`~acc_gym.drivers.slots.SlotView` s are then the ``drivers`` entries of those
+        slots): one model call per step instead of one per slot.
     """
 
     def __init__(self, x0, v0, drivers, *, present=None, lateral: LateralPlan | None = None,
                  vehicle: VehicleParams | None = None, width=VEHICLE_WIDTH, road: Road | None = None,
-                 dt: float = 0.2, sensor_range: float = DEFAULT_SENSOR_RANGE, a0=None):
+                 dt: float = 0.2, sensor_range: float = DEFAULT_SENSOR_RANGE, a0=None, joint=None):
         check_positive("dt", dt)
         if not sensor_range > 0:
             raise ValueError(f"sensor_range must be > 0, got {sensor_range!r}")
@@ -173,6 +179,10 @@ class SingleLaneWorld:
             if model is not None and getattr(model, "n", None) != B:
                 raise ValueError(f"driver of slot {s} controls n={getattr(model, 'n', None)} vehicles; "
                                  f"it must control one per scene (n={B})")
+        if joint is not None and (getattr(joint, "n", None) != B * (S - 1) or not hasattr(joint, "act_rows")):
+            raise ValueError(f"joint drivers must control n={B * (S - 1)} vehicles (every slot but the ego's) "
+                             f"and have act_rows, got n={getattr(joint, 'n', None)}")
+        self.joint = joint
         self.x0 = _as_bs(x0, B, S, "x0")
         self.v0 = _as_bs(v0, B, S, "v0")
         check_nonnegative("v0", self.v0)
@@ -344,16 +354,28 @@ class SingleLaneWorld:
         """Phase one of :meth:`step`: every model's desired acceleration ``(B, S)`` [m/s^2]
         from the current snapshot (slot 0 ``ego_a_des`` when given); nothing moves."""
         a_des = np.zeros((self.B, self.S))
+        joint = getattr(self, "joint", None)
+        if joint is not None:  # every surrounding slot in one call: rows (s - 1) B + b
+            self.observation_array(0)  # makes every slot's observations of this state, (S, 8, B)
+            o = self._obs
+            rows = np.ascontiguousarray(o[1:].transpose(1, 0, 2)).reshape(len(_K.OBS_FIELDS), -1)
+            a_des[:, 1:] = joint.act_rows(rows).reshape(self.S - 1, self.B).T
         for s, model in enumerate(self.drivers):
+            if joint is not None and s > 0:
+                break
             if s == 0 and ego_a_des is not None:
                 ego = ego_a_des
+                if type(ego) is float and math.isfinite(ego):  # a plain number (pre-simulations pass 0.0)
+                    a_des[:, 0] = ego
+                    continue
                 if not (type(ego) is np.ndarray and ego.shape == (self.B,) and ego.dtype == np.float64):
                     ego = np.broadcast_to(np.asarray(ego_a_des, dtype=float), (self.B,))
-                if not np.isfinite(ego).all():
+                if not (math.isfinite(ego[0]) if self.B == 1 else np.isfinite(ego).all()):
                     check_finite("ego_a_des", ego)  # raises, naming the value
                 a_des[:, 0] = ego
             elif model is not None:
-                a_des[:, s] = model.act(self.observe(s))
+                act_rows = getattr(model, "act_rows", None)  # drivers that read the observation rows directly
+                a_des[:, s] = act_rows(self.observation_array(s)) if act_rows is not None else model.act(self.observe(s))
             elif s == 0:
                 raise ValueError("the ego has no model: pass ego_a_des to step()")
         return a_des

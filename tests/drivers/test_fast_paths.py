@@ -101,3 +101,116 @@ def test_batches_with_plain_number_fields_take_the_stacked_check():
     with pytest.raises(ValueError, match="finite"):
         MPCDriverParams(**{**p.__dict__, "r_jerk": math.inf})
     assert not MPCDriverParams(**{**p.__dict__, "r_jerk": True})._arrays_valid()  # bools are not numbers here
+
+
+# ----------------------------------------------------------------------------- this release's fast paths
+from acc_gym.drivers.base import Observation  # noqa: E402
+from acc_gym.drivers.mpc import MPCDriver  # noqa: E402
+from acc_gym.drivers.population import sample_driver_values  # noqa: E402
+from acc_gym.drivers.slots import SlotDrivers  # noqa: E402
+from acc_gym.scenarios.spec import DriverSpec  # noqa: E402
+
+DRIVER_STATE = ("_P", "_alpha", "_beta", "_gain_f", "_gain_c", "_H", "_GL", "_I", "_W", "_PA")
+
+
+def random_rows(rng, n):
+    """Observation rows ``(8, n)`` as the world lays them out: v, a, gap, v_lead, a_lead, gap2, ..."""
+    rows = np.empty((8, n))
+    rows[0] = rng.uniform(0.0, 35.0, n)
+    rows[1] = rng.uniform(-6.0, 2.0, n)
+    rows[2] = np.where(rng.random(n) < 0.8, rng.uniform(0.5, 150.0, n), np.inf)
+    rows[3] = rng.uniform(0.0, 35.0, n)
+    rows[4] = rng.uniform(-6.0, 2.0, n)
+    rows[5:] = np.inf
+    return rows
+
+
+def test_act_rows_equals_act_on_the_observation():
+    """The world's path (one float64 array of rows) gives what act() gives on an Observation
+    of the same rows, step after step (modes, plans, hard QPs and fallbacks included)."""
+    rng = np.random.default_rng(0)
+    n = 40
+    params = sample_drivers(np.random.default_rng(1), n, rng.uniform(8.0, 35.0, n))
+    fast, ref = MPCDriver(params), MPCDriver(params)
+    for _ in range(60):
+        rows = random_rows(rng, n)
+        a_fast = fast.act_rows(rows)
+        a_ref = ref.act(Observation(*rows))
+        assert np.array_equal(a_fast, a_ref)
+        assert np.array_equal(fast.mode, ref.mode) and np.array_equal(fast.plan, ref.plan)
+    assert fast.stats["qp"].sum() > 0  # some steps needed the QP backend
+    for name, value in fast.stats.items():
+        assert np.array_equal(value, ref.stats[name]), name
+
+
+def test_act_rows_rejects_invalid_values_naming_the_field():
+    driver = MPCDriver(sample_drivers(np.random.default_rng(1), 3, 20.0))
+    rows = random_rows(np.random.default_rng(2), 3)
+    rows[0, 1] = np.nan
+    with pytest.raises(ValueError, match="observation.v "):
+        driver.act_rows(rows)
+    rows = random_rows(np.random.default_rng(2), 3)
+    rows[3, 2] = -1.0
+    rows[2, 2] = 10.0
+    with pytest.raises(ValueError, match="v_lead"):
+        driver.act_rows(rows)
+    # anything but a float64 (>= 5, n) array takes act() and its checks
+    with pytest.raises(ValueError, match="shape"):
+        driver.act_rows(random_rows(np.random.default_rng(3), 4))
+
+
+def test_scalar_set_params_equals_the_array_path():
+    """One driver given plain numbers (a reset's path, compiled chords in Python floats) ends
+    with the rows a one-element array batch writes through the general path."""
+    rng = np.random.default_rng(5)
+    batch = sample_drivers(rng, 6, rng.uniform(5.0, 35.0, 6))
+    fast, ref = MPCDriver(batch), MPCDriver(batch)
+    for k in range(20):
+        values = sample_driver_values(rng, float(rng.uniform(3.0, 40.0)), ("typical", "atypical", "malicious")[k % 3])
+        if k % 4:  # the first draw leaves v_max unset (the driver's limit is then v_desired)
+            values["v_max"] = values["v_desired"] + (1.0 if k % 2 else 0.0)
+        i = int(rng.integers(0, 6))
+        fast.set_params(i, MPCDriverParams(**values))  # plain numbers: _install
+        ref.set_params(np.array([i]), MPCDriverParams(**{key: np.array([v]) for key, v in values.items()}))
+        for name in DRIVER_STATE:
+            assert np.array_equal(getattr(fast, name), getattr(ref, name)), (k, name)
+        assert fast._qp_follow[i] is ref._qp_follow[i] and fast._qp_cruise[i] is ref._qp_cruise[i]
+
+
+@pytest.mark.parametrize("kind", ["typical", "atypical", "malicious"])
+def test_one_driver_sampler_equals_sample_drivers(kind):
+    """``sample_driver_values`` (plain numbers) draws what ``sample_drivers(rng, 1, ...)`` draws,
+    bit for bit and field by field, and leaves the generator in the same state; speeds on
+    the band edges and an exhausted retry budget included."""
+    speeds = [0.5, 9.999, 10.0, 15.0, 20.0, 25.0, 30.0, 30.001, 44.0]
+    for seed in range(300):
+        for max_tries in (50, 1):
+            speed = speeds[seed % len(speeds)] if seed < 2 * len(speeds) else float(
+                np.random.default_rng(seed).uniform(0.5, 45.0))
+            r_ref, r_fast = np.random.default_rng(seed), np.random.default_rng(seed)
+            ref = DriverSpec.mpc(sample_drivers(r_ref, 1, speed, kind, max_tries=max_tries)).params
+            fast = sample_driver_values(r_fast, speed, kind, max_tries=max_tries)
+            assert list(fast) == list(ref)
+            assert np.array_equal(np.array(list(fast.values())).view(np.int64),
+                                  np.array(list(ref.values())).view(np.int64)), (seed, speed)
+            assert r_fast.bit_generator.state == r_ref.bit_generator.state
+
+
+def test_slot_act_rows_equals_act_and_falls_back_for_mixed_slots():
+    rng = np.random.default_rng(7)
+    specs = [DriverSpec("mpc", sample_driver_values(rng, float(v))) for v in rng.uniform(8.0, 30.0, 4)]
+    fast, ref = SlotDrivers(4, 0.2), SlotDrivers(4, 0.2)
+    for slot in (fast, ref):
+        for row, spec in enumerate(specs):
+            slot.assign(row, spec)
+    for _ in range(30):
+        rows = random_rows(rng, 4)
+        assert np.array_equal(fast.act_rows(rows), ref.act(Observation(*rows)))
+        assert np.array_equal(fast.info["mode"], ref.info["mode"]) and np.array_equal(fast.fallbacks, ref.fallbacks)
+    profile = DriverSpec("profile", {}, (0.0, 10.0), (20.0, 25.0))
+    for slot in (fast, ref):
+        slot.assign(2, profile)
+    for _ in range(5):
+        rows = random_rows(rng, 4)
+        assert np.array_equal(fast.act_rows(rows), ref.act(Observation(*rows)))
+        assert fast.info["mode"][2] == -1

@@ -99,3 +99,42 @@ def test_a_large_batch_uses_the_parallel_kernel_and_gives_the_same_numbers():
         a = big.act(o)
         for model, i in zip(alone, rows):
             assert a[i] == model.act(o.take([i]))[0]
+
+
+def test_slot_views_of_one_holder_equal_separate_slots():
+    """Two slots held by one SlotDrivers (rows j n + b) and stepped as one batch give each
+    slot what a separate SlotDrivers per slot gives: accelerations, modes, fallbacks."""
+    from acc_gym.drivers.base import Observation
+    from acc_gym.drivers.population import sample_driver_values
+    from acc_gym.drivers.slots import SlotView
+    from acc_gym.scenarios.spec import DriverSpec
+
+    rng = np.random.default_rng(3)
+    n = 3
+    separate = [SlotDrivers(n, 0.2), SlotDrivers(n, 0.2)]
+    joint = SlotDrivers(2 * n, 0.2)
+    views = [SlotView(joint, j, n) for j in range(2)]
+    for j in range(2):
+        for b in range(n):
+            spec = None if (j, b) == (1, 2) else DriverSpec("mpc", sample_driver_values(rng, float(rng.uniform(8, 30))))
+            separate[j].assign(b, spec)
+            views[j].assign(b, spec)
+    for _ in range(40):
+        rows = np.empty((8, 2 * n))
+        rows[0] = rng.uniform(0.0, 30.0, 2 * n)
+        rows[1] = rng.uniform(-4.0, 2.0, 2 * n)
+        rows[2] = np.where(rng.random(2 * n) < 0.8, rng.uniform(1.0, 120.0, 2 * n), np.inf)
+        rows[3] = rng.uniform(0.0, 30.0, 2 * n)
+        rows[4] = rng.uniform(-4.0, 2.0, 2 * n)
+        rows[5:] = np.inf
+        both = joint.act_rows(rows)
+        for j in range(2):
+            alone = separate[j].act(Observation(*rows[:, j * n:(j + 1) * n]))
+            assert np.array_equal(both[j * n:(j + 1) * n], alone)
+            assert np.array_equal(views[j].info["mode"], separate[j].info["mode"])
+            assert np.array_equal(views[j].fallbacks, separate[j].fallbacks)
+    assert views[1].info["mode"][2] == -1  # the absent vehicle's row
+    with pytest.raises(RuntimeError, match="joint"):
+        views[0].act(None)
+    with pytest.raises(ValueError, match="out of range"):
+        views[0].assign(n, None)

@@ -291,12 +291,11 @@ def test_different_seeds_differ():
 
 def _solver_paths(env) -> int:
     """Steps the MPC drivers of the current episode solved by an active-set or QP backend."""
-    total = 0
-    for slot in env.unwrapped.core.slots:
-        if slot._mpc is not None:
-            stats = slot._mpc.stats
-            total += int(stats["active_set"].sum() + stats["qp"].sum())
-    return total
+    mpc = env.unwrapped.core.drivers._mpc  # both surrounding slots' MPC drivers, one batch
+    if mpc is None:
+        return 0
+    stats = mpc.stats
+    return int(stats["active_set"].sum() + stats["qp"].sum())
 
 
 @pytest.mark.parametrize("env_id, kwargs, seed", [(NCAP, {}, 3), (CF, {"drivers": "idm"}, 3), (SL, {}, 3),

@@ -192,3 +192,22 @@ def test_fused_core_step_equals_the_separate_kernels(env_id):
             if ended.size:
                 core.reset_rows(ended, [r[i] for i in ended])
     assert n_final >= 6  # episodes ended (and restarted) along the way
+
+
+def test_scenario_sampler_draws_the_index_rng_choice_draws():
+    """The sampler's cached cumulative sums give ``rng.choice(n, p=p)``'s index with the
+    same draw (generator state after equal), for the weighted single-lane mix."""
+    from acc_gym.envs.acc_env import make_config
+    from acc_gym.envs.config import ScenarioSampler
+
+    config = make_config(None, {}, "singlelane")
+    sampler = ScenarioSampler(config)
+    assert len(set(config.probabilities)) > 1  # weighted, not uniform
+    seen = set()
+    for seed in range(3000):
+        r_fast, r_ref = np.random.default_rng(seed), np.random.default_rng(seed)
+        i = int(sampler._cdf.searchsorted(r_fast.random(), side="right"))
+        assert i == sampler.reference_choice(r_ref)
+        assert r_fast.bit_generator.state == r_ref.bit_generator.state
+        seen.add(i)
+    assert len(seen) == len(config.scenarios)

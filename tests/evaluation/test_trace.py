@@ -74,3 +74,66 @@ def test_broken_csv_files_give_clear_errors(tmp_path, content, message):
     path.write_text(content)
     with pytest.raises(ValueError, match=message):
         EgoTrace.from_csv(path)
+
+
+# ----------------------------------------------------------------------------- the compiled validation
+def random_trace_columns(rng, n=60):
+    t = np.cumsum(rng.uniform(0.1, 0.3, n))
+    has = rng.random(n) < 0.8
+    cols = {"t": t, "v": rng.uniform(0.0, 30.0, n), "a": rng.uniform(-8.0, 3.0, n),
+            "gap": np.where(has, rng.uniform(-1.0, 120.0, n), np.inf),
+            "v_lead": np.where(has, rng.uniform(0.0, 30.0, n), 0.0), "a_lead": rng.uniform(-8.0, 3.0, n),
+            "lead_id": np.where(has, 1.0, -1.0), "a_y": rng.normal(0.0, 0.3, n), "d2": rng.uniform(0.1, 1.0, n),
+            "d3": rng.uniform(0.1, 1.0, n)}
+    return cols
+
+
+def checked_the_slow_way(cols, **kw):
+    """The field-by-field checks alone (float lists never take the compiled pass)."""
+    return EgoTrace(**{k: v.tolist() for k, v in cols.items()}, **kw)
+
+
+def test_compiled_validation_keeps_valid_columns_and_equals_the_checks():
+    rng = np.random.default_rng(0)
+    for k in range(40):
+        cols = random_trace_columns(rng)
+        if k % 3 == 0:
+            for name in ("a_lead", "lead_id", "a_y", "d2", "d3"):
+                del cols[name]
+        elif k % 3 == 1:  # strided columns (views into a world trace's (T, B, S) arrays)
+            cols["lead_id"] = np.repeat(cols["lead_id"][:, None], 3, axis=1)[:, 1]
+            cols["a_lead"] = np.repeat(cols["a_lead"][:, None], 2, axis=1)[:, 0]
+        fast = EgoTrace(**cols, set_speed=25.0, time_gap=1.5)
+        assert fast._valid_as_given()
+        assert all(getattr(fast, name) is value for name, value in cols.items())  # kept as given
+        slow = checked_the_slow_way(cols, set_speed=25.0, time_gap=1.5)
+        for name, value in cols.items():
+            assert np.array_equal(getattr(slow, name), value), name
+        assert score_episode(fast).to_dict() == score_episode(slow).to_dict()
+
+
+@pytest.mark.parametrize("name, index, value, message", [
+    ("v", 5, np.nan, "'v' is NaN at sample 5"),
+    ("gap", 3, -np.inf, "'gap' must not be -inf"),
+    ("v_lead", 7, np.inf, "'v_lead' must be finite where a vehicle is ahead"),
+    ("a_y", 2, np.inf, "'a_y' must be finite"),
+    ("t", 4, 0.0, "strictly increasing"),
+    ("v", 9, -0.5, "must be >= 0"),
+])
+def test_compiled_validation_hands_bad_columns_to_the_named_checks(name, index, value, message):
+    cols = random_trace_columns(np.random.default_rng(1))
+    cols["gap"][7] = 10.0  # sample 7 has a vehicle ahead
+    cols[name][index] = value
+    with pytest.raises(ValueError, match=message):
+        EgoTrace(**cols)
+
+
+def test_v_lead_without_a_vehicle_ahead_is_zeroed_as_before():
+    """A v_lead other than +0.0 where the gap is inf makes the checks (not the compiled pass)
+    take the trace, and they set it to 0 -- including -0.0."""
+    cols = random_trace_columns(np.random.default_rng(2))
+    cols["gap"][[3, 4]] = np.inf
+    cols["v_lead"][3], cols["v_lead"][4] = 12.0, -0.0
+    trace = EgoTrace(**cols)
+    assert trace.v_lead[3] == 0.0 and np.signbit(trace.v_lead[4]) == np.False_
+    assert trace.v_lead is not cols["v_lead"]  # the checks replaced the column

@@ -537,3 +537,15 @@ def test_compiled_reset_rows_names_overlapping_vehicles():
                  lateral=LateralPlan.still(np.array([[0.0, 0.0, 3.75]])), lengths=np.full((1, 3), 4.7),
                  width=np.full((1, 3), 1.8))
     assert w.neighbours.lead[0, 0] == 1 and w.neighbours.lead[0, 1] == -1
+
+
+def test_a_plain_number_for_the_ego_equals_an_array():
+    worlds = [make_world(3, B=4) for _ in range(2)]
+    for w in worlds:
+        randomise(w, np.random.default_rng(3))
+    worlds[0].step(-1.5)
+    worlds[1].step(np.full(4, -1.5))
+    for name in ("x", "v", "a", "a_des"):
+        assert np.array_equal(getattr(worlds[0], name), getattr(worlds[1], name)), name
+    with pytest.raises(ValueError, match="ego_a_des"):
+        worlds[0].step(float("nan"))
