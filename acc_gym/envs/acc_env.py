@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import gymnasium as gym
 from gymnasium import spaces
@@ -186,6 +188,7 @@ class ACCEnv(gym.Env):
                                  reward_fn or CriteriaReward(), mpc_settings)
         self.core.obs_bounds = self._bounds = (self.observation_space.low.astype(float),
                                                self.observation_space.high.astype(float))
+        self._accel_max, self._decel_max = float(self.config.accel_max), float(self.config.decel_max)
         self._needs_reset = True
         self._viewer = None
 
@@ -216,8 +219,13 @@ class ACCEnv(gym.Env):
     def step(self, action):
         if self._needs_reset:
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
-        a = check_actions(action, (1,))
-        reward, term, trunc, info = self.core.step(action_to_accel(a, self.config))
+        x = float(action[0]) if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f" else None
+        if x is not None and math.isfinite(x):  # the usual action: one finite float, mapped with Python floats
+            x = min(max(x, -1.0), 1.0)  # the operations of action_to_accel's kernel, so the same bits
+            a_des = np.array([x * self._accel_max if x >= 0 else x * self._decel_max])
+        else:
+            a_des = action_to_accel(check_actions(action, (1,)), self.config)
+        reward, term, trunc, info = self.core.step(a_des)
         fl, bo, terms = self.core.last_rows
         f = fl[:, 0].tolist()  # one conversion for every float of the step (criteria rows, time)
         q = f[_K.F_Q]

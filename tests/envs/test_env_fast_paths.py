@@ -211,3 +211,33 @@ def test_scenario_sampler_draws_the_index_rng_choice_draws():
         assert r_fast.bit_generator.state == r_ref.bit_generator.state
         seen.add(i)
     assert len(seen) == len(config.scenarios)
+
+
+def test_single_env_action_fast_path_maps_like_the_kernel():
+    """ACCEnv.step maps one finite float action with Python floats; the desired acceleration
+    it hands the core equals action_to_accel(check_actions(...)) bit for bit (clipping,
+    signed zeros, float32 and float64), and other inputs still take check_actions."""
+    env = gymnasium.make("acc_gym/NCAP-v0", accel_max=2.5, decel_max=7.0).unwrapped
+    seen = []
+    step = env.core.step
+
+    def spy(a_des, active=None):
+        seen.append(a_des.copy())
+        return step(a_des, active)
+
+    env.core.step = spy
+    values = [0.0, -0.0, 0.3, -0.3, 1.0, -1.0, 1.7, -2.5, 1e-30, -1e-30, 0.999999]
+    for dtype in (np.float32, np.float64):
+        for x in values:
+            env.reset(seed=0)
+            env.step(np.array([x], dtype=dtype))
+            ref = action_to_accel(np.array([x], dtype=dtype).astype(float), env.config)
+            assert seen[-1].dtype == np.float64 and seen[-1].shape == (1,)
+            assert seen[-1].view(np.int64)[0] == ref.view(np.int64)[0], (dtype, x)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="NaN"):
+        env.step(np.array([np.nan], dtype=np.float32))
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.array([0.1, 0.2]))
+    env.step([0.5])  # a list takes check_actions
+    assert seen[-1][0] == 0.5 * 2.5
