@@ -140,7 +140,7 @@ def reference_step(core, a_des, active=None):
     reward, settle, record and observe kernels one by one): what the fused kernels replace."""
     w = core.world
     a_prev = w.a[:, 0].copy()
-    w.step(a_des)
+    w.move_reference(w.decide(a_des))  # the world's separate kernels (advance, then refresh)
     t = w.t
     cfg = core.config.scoring
     grace = core._grace if core._grace is not None else core.tau1

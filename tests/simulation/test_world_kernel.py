@@ -450,8 +450,9 @@ def test_observe_all_called_directly():
 # ----------------------------------------------------------------------------- fused move, compiled reset
 @pytest.mark.parametrize("seed", range(4))
 def test_fused_move_equals_move(seed):
-    """``decide`` + the one-call ``_world_kernel.move`` + ``adopt`` (the environment core's
-    path) leave exactly the state ``step`` (``decide`` + ``move``) leaves, step after step."""
+    """``decide`` + the one-call ``_world_kernel.move`` + ``adopt`` (``move``, and the environment
+    core's path) leave exactly the state the separate kernels (``move_reference``: advance,
+    then refresh) leave, step after step; ``step`` is ``decide`` + ``move``."""
     worlds = []
     for _ in range(2):
         w = make_world(3)
@@ -464,7 +465,7 @@ def test_fused_move_equals_move(seed):
         for w in worlds:
             for s in (1, 2):
                 w.drivers[s].a = a[:, s].copy()
-        ref.step(a[:, 0])
+        ref.move_reference(ref.decide(a[:, 0]))
         a_all = fused.decide(a[:, 0])
         F, I, obs = fused.move_buffers()
         t = np.empty(B)
@@ -482,6 +483,10 @@ def test_fused_move_equals_move(seed):
         for s in range(3):
             assert np.array_equal(fused.observation_array(s), ref.observation_array(s))
         assert not fused.observation_array(0).flags.writeable
+    stepped = make_world(3)
+    randomise(stepped, np.random.default_rng(seed))
+    for name in ("x", "v"):
+        assert not np.array_equal(getattr(stepped, name), getattr(ref, name))
     assert ref.collided.any() and (ref.neighbours.lead >= 0).any()  # the states exercised collisions and leads
 
 
