@@ -1,6 +1,7 @@
 """The benchmark scripts run and print the documented JSON keys (speed is not tested here)."""
 
 import json
+import os
 import pathlib
 import subprocess
 import sys
@@ -26,6 +27,8 @@ def test_bench_env_json_keys():
     out = json.loads(r.stdout)
     assert out["env_steps_per_s"] > 0 and out["vector_env_steps_per_s"] > 0 and out["num_envs"] == 8
     assert len(out["env_steps_per_s_runs"]) == 1
+    if (os.cpu_count() or 1) > 1:  # by default the vector env over worker processes is timed too
+        assert out["workers"] == os.cpu_count() and out["vector_env_workers_steps_per_s"] > 0
 
 
 def test_bench_campaign_json_keys():

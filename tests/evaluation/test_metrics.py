@@ -47,3 +47,21 @@ def test_no_lead_transient_gives_nan_damping():
     t = np.arange(0, 20, 0.2)
     os, n = speed_overshoot(t, np.full(t.size, 20.0), np.full(t.size, 20.0), np.ones(t.size, bool))
     assert n == 0 and math.isnan(os) and math.isnan(damping_ratio(os))
+
+
+def test_compiled_gradient_equals_numpy_gradient_bit_for_bit():
+    """``metrics.gradient`` (what speed_overshoot uses) equals ``np.gradient(f, x)``: uniform grids
+    (exactly equal steps), the environments' ``k dt`` times (steps equal only up to rounding),
+    irregular times, two samples; other inputs go to numpy itself."""
+    from acc_gym.evaluation.metrics import _gradient, gradient
+
+    rng = np.random.default_rng(0)
+    grids = [lambda n: np.arange(n) * 0.2, lambda n: np.arange(n) * 0.25, lambda n: np.arange(n, dtype=float),
+             lambda n: np.cumsum(rng.uniform(0.05, 0.5, n))]
+    for k in range(800):
+        n = int(rng.integers(2, 150))
+        x = grids[k % 4](n)
+        f = rng.normal(0.0, 10.0, n)
+        assert np.array_equal(_gradient(f, x).view(np.int64), np.gradient(f, x).view(np.int64)), (k, n)
+    assert not np.all(np.diff(np.arange(100) * 0.2) == 0.2)  # the k dt grid is not exactly uniform
+    assert np.array_equal(gradient([1.0, 2.0, 4.0], [0.0, 1.0, 2.0]), np.gradient([1.0, 2.0, 4.0], [0.0, 1.0, 2.0]))
