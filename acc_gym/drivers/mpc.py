@@ -458,7 +458,7 @@ class MPCDriver:
                     continue
                 value = getattr(new, f.name)
                 target[idx] = new.speed_limit if value is None else value
-        p, s = cur, self.settings
+        p = cur
         alpha, beta = terminal_chords(p.a_min[idx], p.jerk_max[idx], p.speed_limit[idx])
         self._alpha[idx], self._beta[idx] = alpha, beta
         cols = np.stack([np.asarray(p.speed_limit if c == "v_max" else getattr(p, c), float)[idx]
@@ -466,20 +466,7 @@ class MPCDriver:
         self._P[idx, :cols.shape[1]] = cols
         self._P[idx, -2 * alpha.shape[1]:] = np.concatenate([alpha, beta], axis=1)
         for i in idx.tolist():
-            qf = condensed_qp(float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]), self.horizon,
-                              s.slack_linear, s.slack_quadratic, float(p.r_jerk[i]))
-            qc = condensed_qp(0.0, float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]), self.horizon,
-                              s.slack_linear, s.slack_quadratic, float(p.r_jerk[i]))
-            self._qp_follow[i], self._qp_cruise[i] = qf, qc
-            self._gain_f[i] = qf.gain
-            self._gain_c[i] = qc.gain[:, 1:]
-            self._H[i, 0] = qf.hinv_sums
-            self._H[i, 1] = qc.hinv_sums
-            if s.use_lead_accel:
-                self._GL[i] = qf.gain_lead_sums
-            for key in [k for k in self._backends if k[0] == i]:
-                del self._backends[key]
-                self._last_used.pop(key, None)
+            self._install_qps(i)
         self._I[idx] = 0
         self._PA[idx] = 0.0
         self._W[idx] = 0.0
@@ -490,7 +477,7 @@ class MPCDriver:
         :attr:`params`: the same rows written with Python floats instead of small arrays
         (the terminal chords by :func:`~acc_gym.drivers.qp.terminal_chords`'s operations in
         its order, so the same bits; ``tests/drivers/test_fast_paths.py`` checks it)."""
-        p, s = self.params, self.settings
+        p = self.params
         limit_col = p.v_desired if p.v_max is None else p.v_max  # speed_limit, without its array copy
         row = [float((limit_col if c == "v_max" else getattr(p, c))[i]) for c in _PARAM_COLUMNS]
         b = -float(p.a_min[i])
@@ -504,6 +491,17 @@ class MPCDriver:
         P = self._P[i]
         P[:len(row)] = row
         P[-2 * K_TERM:] = alpha + beta
+        self._install_qps(i)
+        self._I[i] = 0
+        self._PA[i] = 0.0
+        W = self._W[i]
+        W[:] = 0.0
+        W[K.W_PATH] = -1
+
+    def _install_qps(self, i: int) -> None:
+        """Driver ``i``'s condensed QPs (follow and cruise, from the cache when a configuration
+        repeats) and the kernel's rows made from them; its solver workspaces are dropped."""
+        p, s = self.params, self.settings
         q1, q2, r1, c_tg, r_jerk = (float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]),
                                     float(p.r_jerk[i]))
         qf = condensed_qp(q1, q2, r1, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk)
@@ -519,11 +517,6 @@ class MPCDriver:
             for key in [k for k in self._backends if k[0] == i]:
                 del self._backends[key]
                 self._last_used.pop(key, None)
-        self._I[i] = 0
-        self._PA[i] = 0.0
-        W = self._W[i]
-        W[:] = 0.0
-        W[K.W_PATH] = -1
 
     def __getstate__(self):
         state = self.__dict__.copy()
