@@ -44,19 +44,33 @@ def json_safe(x):
     """NaN -> None, infinities -> their string (``"inf"``), numpy scalars -> Python, recursively.
 
     Plain Python floats, ints, bools, strings and None (most of a report) are recognised
-    by their exact type first; everything else takes the general checks below, which
-    give the same result for them."""
+    by their exact type first; every other value takes :func:`_json_value`'s general
+    checks, which give the same result for them (:func:`json_safe_reference` is the
+    definition without the fast path; ``tests/test_io.py`` compares the two)."""
     t = type(x)
     if t is float:
         return None if x != x else (str(x) if x - x != 0.0 else x)  # NaN; +-inf (inf - inf is NaN)
     if t is int or t is bool or t is str or x is None:
         return x
-    if t is dict:
-        return {str(k): json_safe(v) for k, v in x.items()}
     if isinstance(x, dict):
         return {str(k): json_safe(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
         return [json_safe(v) for v in x]
+    return _json_value(x)
+
+
+def json_safe_reference(x):
+    """:func:`json_safe` by the general checks alone (its definition)."""
+    if isinstance(x, dict):
+        return {str(k): json_safe_reference(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [json_safe_reference(v) for v in x]
+    return _json_value(x)
+
+
+def _json_value(x):
+    """One non-container value: bools and integers (numpy's too) to Python, floats to Python
+    with NaN -> None and infinities -> their string; anything else as it is."""
     if isinstance(x, (bool, np.bool_)):
         return bool(x)
     if isinstance(x, (int, np.integer)):

@@ -17,8 +17,8 @@ set where an episode ended; ``scenario`` and ``scenario_seed`` where one started
 ``workers=k`` (default 1) splits the environments over ``k`` worker processes, one
 in-process vector env each (:mod:`acc_gym.envs.shards`): the same results, on ``k``
 cores. ``workers_context`` picks the ``multiprocessing`` start method (default
-``"fork"`` where available, see :mod:`acc_gym.envs.shards`). Call ``close()`` when done (the workers are daemons and also end with the
-program).
+``"fork"`` where available, see :mod:`acc_gym.envs.shards`). Call ``close()`` when done
+(the workers are daemons and also end with the program).
 """
 
 from __future__ import annotations
