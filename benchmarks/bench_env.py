@@ -16,6 +16,11 @@ processes (``make_vec(..., workers=K)``, :mod:`acc_gym.envs.shards`) as
 ``vector_env_workers_steps_per_s``; ``--workers 1`` skips it. ``--parallel`` runs the
 vector env's MPC drivers on numba's thread pool (``MPCSettings(parallel=None)``; off by
 default, see :class:`acc_gym.drivers.mpc.MPCSettings`) and reports that figure as well.
+``--policy`` times the vector env as training runs it, with stable-baselines3's default
+PPO policy sampling every action from the observations (one torch thread), in process
+and over ``--workers`` processes (``vector_env_policy_steps_per_s``,
+``vector_env_workers_policy_steps_per_s``): each worker draws its next episodes while the
+policy runs (:meth:`acc_gym.envs.vector.ACCVectorEnv.prepare_resets`).
 
     python benchmarks/bench_env.py            # table
     python benchmarks/bench_env.py --json     # one JSON object
@@ -66,6 +71,28 @@ def vector_env_rate(num_envs: int, steps: int, seed: int, parallel: bool = False
     return rate
 
 
+def vector_policy_rate(num_envs: int, steps: int, seed: int, workers: int = 1) -> float:
+    """The vector env with a policy in the loop, as in training: stable-baselines3's default
+    PPO policy (64-64 MLP, one torch thread) samples every action from the observations."""
+    import torch
+    from stable_baselines3.common.policies import ActorCriticPolicy
+
+    torch.set_num_threads(1)
+    envs = gym.make_vec("acc_gym/SingleLane-v0", num_envs=num_envs, vectorization_mode="vector_entry_point",
+                        scenarios=THREE_VEHICLES, workers=workers)
+    torch.manual_seed(seed)
+    policy = ActorCriticPolicy(envs.single_observation_space, envs.single_action_space, lambda _: 3e-4)
+    obs, _ = envs.reset(seed=seed)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        with torch.no_grad():
+            actions, _, _ = policy(torch.as_tensor(obs))
+        obs = envs.step(np.clip(actions.numpy(), -1.0, 1.0))[0]
+    rate = num_envs * steps / (time.perf_counter() - t0)
+    envs.close()
+    return rate
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=3000, help="single-env steps per timed run")
@@ -75,6 +102,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--parallel", action="store_true", help="also time the vector env with threaded MPC drivers")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                         help="also time the vector env over this many worker processes (1: skip)")
+    parser.add_argument("--policy", action="store_true",
+                        help="also time the vector env (in-process and with --workers) with a PPO policy in the loop")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     single_env_rate(300, 99)  # warm-up: compile and cache
@@ -94,6 +123,12 @@ def main(argv=None) -> dict:
         out["workers"] = args.workers
         out["vector_env_workers_steps_per_s"] = float(np.median(work))
         out["vector_env_workers_steps_per_s_runs"] = [round(x) for x in work]
+    if args.policy:
+        for workers, key in ((1, "vector_env_policy_steps_per_s"), (args.workers, "vector_env_workers_policy_steps_per_s")):
+            if workers > 1 or key == "vector_env_policy_steps_per_s":
+                runs = [vector_policy_rate(args.num_envs, args.vector_steps, r, workers) for r in range(args.repeats)]
+                out[key] = float(np.median(runs))
+                out[key + "_runs"] = [round(x) for x in runs]
     if args.parallel:
         vector_env_rate(min(args.num_envs, 16), 20, 99, parallel=True)
         par = [vector_env_rate(args.num_envs, args.vector_steps, r, parallel=True) for r in range(args.repeats)]
@@ -109,6 +144,13 @@ def main(argv=None) -> dict:
         if args.workers > 1:
             print(f"vector env, {args.workers} worker processes:  {out['vector_env_workers_steps_per_s']:,.0f} steps/s "
                   f"(runs {out['vector_env_workers_steps_per_s_runs']})")
+        if args.policy:
+            print(f"vector env + PPO policy in the loop:  {out['vector_env_policy_steps_per_s']:,.0f} steps/s "
+                  f"(runs {out['vector_env_policy_steps_per_s_runs']})")
+            if args.workers > 1:
+                print(f"  the same, {args.workers} worker processes: "
+                      f"{out['vector_env_workers_policy_steps_per_s']:,.0f} steps/s "
+                      f"(runs {out['vector_env_workers_policy_steps_per_s_runs']})")
         if args.parallel:
             print(f"vector env, threaded MPC drivers:    {out['vector_env_parallel_steps_per_s']:,.0f} steps/s "
                   f"(runs {out['vector_env_parallel_steps_per_s_runs']})")

@@ -498,14 +498,38 @@ class MPCDriver:
         W[:] = 0.0
         W[K.W_PATH] = -1
 
+    def _condensed(self, q1: float, q2: float, r1: float, c_tg: float, r_jerk: float):
+        """The follow and cruise QPs of one driver configuration, from
+        :func:`~acc_gym.drivers.qp.condensed_qp`'s cache when it repeats."""
+        s = self.settings
+        qf = condensed_qp(q1, q2, r1, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk)
+        qc = condensed_qp(0.0, q2, r1, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk)
+        if s.use_lead_accel:
+            qf.gain_lead_sums  # noqa: B018  (made once, kept by the shared QP)
+        return qf, qc
+
+    def prepare(self, params: MPCDriverParams) -> bool:
+        """Condense the QPs of one driver's ``params`` (plain numbers) now, ahead of the
+        :meth:`set_params` that will install them, which then finds them in
+        :func:`~acc_gym.drivers.qp.condensed_qp`'s cache: the same objects, so the same
+        numbers. A vector environment's worker does this for its next episodes while it
+        would otherwise wait (:meth:`ACCVectorEnv.prepare_resets
+        <acc_gym.envs.vector.ACCVectorEnv.prepare_resets>`). Returns whether it did; a
+        configuration the QP cannot take is left for :meth:`set_params` to report."""
+        values = [getattr(params, name) for name in ("q1", "q2", "r1", "c_tg", "r_jerk")]
+        if not all(type(v) is float or (v is not None and np.ndim(v) == 0) for v in values):
+            return False
+        try:
+            self._condensed(*(float(v) for v in values))
+        except (ValueError, np.linalg.LinAlgError):
+            return False
+        return True
+
     def _install_qps(self, i: int) -> None:
         """Driver ``i``'s condensed QPs (follow and cruise, from the cache when a configuration
         repeats) and the kernel's rows made from them; its solver workspaces are dropped."""
         p, s = self.params, self.settings
-        q1, q2, r1, c_tg, r_jerk = (float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]),
-                                    float(p.r_jerk[i]))
-        qf = condensed_qp(q1, q2, r1, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk)
-        qc = condensed_qp(0.0, q2, r1, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk)
+        qf, qc = self._condensed(float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]), float(p.r_jerk[i]))
         self._qp_follow[i], self._qp_cruise[i] = qf, qc
         self._gain_f[i] = qf.gain
         self._gain_c[i] = qc.gain[:, 1:]

@@ -84,6 +84,14 @@ class SlotDrivers:
             self._baseline[row] = cls(spec.params_object(), n=1, dt=self.dt)
             self.kind[row] = 3
 
+    def prepare(self, spec) -> bool:
+        """Do ahead of :meth:`assign` what needs only the driver ``spec`` itself: an MPC
+        driver's condensed QPs (:meth:`MPCDriver.prepare <acc_gym.drivers.mpc.MPCDriver.prepare>`).
+        Returns whether there was anything to do."""
+        if spec is None or spec.model != "mpc" or self._mpc is None:
+            return False
+        return self._mpc.prepare(spec.params_object())
+
     def reset(self) -> None:
         """Restart every scene's driver with its current parameters."""
         self._clock[:] = 0

@@ -81,9 +81,9 @@ class EpisodeBatch:
         """Start new episodes in scenes ``rows``: each draws its scenario with its generator
         (``rngs[j]``) unless ``scenarios[j]`` is given."""
         rows = [int(r) for r in np.atleast_1d(rows)]
-        chosen = []
-        for j, row in enumerate(rows):
-            sc = scenarios[j] if scenarios is not None and scenarios[j] is not None else self.generator(rngs[j])
+        chosen = [sc if scenarios is not None and sc is not None else self.draw(rngs[j])
+                  for j, sc in enumerate(scenarios if scenarios is not None else [None] * len(rows))]
+        for sc in chosen:
             if not isinstance(sc, Scenario):
                 raise TypeError(f"the scenario generator must return a Scenario, got {type(sc).__name__}")
             if sc.dt != DT:
@@ -91,7 +91,6 @@ class EpisodeBatch:
             if sc.road.lane_width != LANE_WIDTH:
                 raise ValueError(f"scenario {sc.id!r} has {sc.road.lane_width} m lanes; "
                                  f"the environments use {LANE_WIDTH}")
-            chosen.append(sc)
         arr = scene_arrays(chosen, self.world.road)
         self.world.reset_rows(rows, arr.x0, arr.v0, present=arr.present, lateral=arr.lateral, lengths=arr.length,
                               width=arr.width)
@@ -121,6 +120,19 @@ class EpisodeBatch:
         if need > have:
             self._set_record(np.concatenate([self._rec_arr, np.zeros((len(_RECORD), self.n, need - have))], axis=2))
         self._record(rows_a)
+
+    def draw(self, rng: np.random.Generator):
+        """The next scenario of a scene whose generator is ``rng`` (what :meth:`reset_rows`
+        draws when it is not given one)."""
+        return self.generator(rng)
+
+    def prepare(self, scenario) -> None:
+        """Do ahead of :meth:`reset_rows` the part of starting ``scenario`` that depends only
+        on the scenario: its surrounding drivers' condensed QPs (into the shared cache that
+        :meth:`reset_rows` then reads)."""
+        if isinstance(scenario, Scenario):
+            for vehicle in scenario.vehicles:
+                self.drivers.prepare(vehicle.driver)
 
     def _q(self, v1, v0, gap, has):
         """Gapsafe and Q per scene (each with its own tau1)."""

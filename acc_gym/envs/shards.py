@@ -13,6 +13,13 @@ and per call a round trip through a pipe with the pickled actions and results (s
 tens of microseconds per shard). Worth it for many environments on several cores; for
 a few environments the in-process vector env is faster.
 
+Right after answering a step, each worker draws the next scenarios of its environments
+whose episode just ended and condenses their drivers' QPs
+(:meth:`~acc_gym.envs.vector.ACCVectorEnv.prepare_resets`), work that the next step's
+autoreset would otherwise do; it runs while the worker would wait for the slowest shard
+and for the caller's policy, and changes no result. An error in it is reported by the
+next call.
+
 The workers are daemon processes started with ``multiprocessing``'s ``"fork"`` method where
 there is one (Linux: fast, and no ``if __name__ == "__main__":`` guard needed in the
 calling script), else ``"spawn"``; pass ``workers_context="spawn"`` or ``"forkserver"``
@@ -49,6 +56,7 @@ def _worker(conn, n: int, kwargs: dict) -> None:  # pragma: no cover - runs in t
         conn.send(("error", f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"))
         conn.close()
         return
+    late = None
     while True:
         try:
             cmd, arg = conn.recv()
@@ -59,8 +67,17 @@ def _worker(conn, n: int, kwargs: dict) -> None:  # pragma: no cover - runs in t
             conn.send(("ok", None))
             break
         try:
+            if late is not None:  # prepare_resets failed after the last answer: this call reports it
+                raise late
             if cmd == "step":
-                out = env.step(arg)
+                conn.send(("ok", env.step(arg)))
+                try:
+                    env.prepare_resets()  # the next episodes' start-up, while the caller is busy
+                except BaseException as exc:  # noqa: BLE001 - reported by the next call
+                    late = exc
+                continue
+            elif cmd == "prepare_resets":
+                out = env.prepare_resets()
             elif cmd == "reset":
                 out = env.reset(seed=arg[0], options=arg[1])
             elif cmd == "reset_ended":
@@ -71,6 +88,7 @@ def _worker(conn, n: int, kwargs: dict) -> None:  # pragma: no cover - runs in t
                 raise ValueError(f"unknown command {cmd!r}")
             conn.send(("ok", out))
         except BaseException as exc:  # noqa: BLE001 - reported to the parent
+            late = None
             conn.send(("error", f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"))
 
 

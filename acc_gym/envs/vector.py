@@ -18,7 +18,9 @@ set where an episode ended; ``scenario`` and ``scenario_seed`` where one started
 in-process vector env each (:mod:`acc_gym.envs.shards`): the same results, on ``k``
 cores. ``workers_context`` picks the ``multiprocessing`` start method (default
 ``"fork"`` where available, see :mod:`acc_gym.envs.shards`). Call ``close()`` when done
-(the workers are daemons and also end with the program).
+(the workers are daemons and also end with the program). Each worker draws its next
+episodes' scenarios while the caller's policy runs (:meth:`ACCVectorEnv.prepare_resets`),
+so a training loop gains more from workers than a loop of pre-drawn actions.
 """
 
 from __future__ import annotations
@@ -77,11 +79,17 @@ class ACCVectorEnv(VectorEnv):
         space = self.single_observation_space
         self.core.obs_bounds = self._bounds = (space.low.astype(float), space.high.astype(float))
         self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]
+        self._drawn: dict[int, object] = {}  # row -> its next scenario, drawn ahead (prepare_resets)
 
     def _obs(self) -> np.ndarray:
         return self.core.observe(*self._bounds, dtype=np.float32)
 
     def _reset_rows(self, rows, scenarios=None) -> dict:
+        if scenarios is None and self._drawn:
+            scenarios = [self._drawn.pop(r, None) for r in rows]
+            for sc in scenarios:
+                if isinstance(sc, BaseException):
+                    raise sc  # the draw failed ahead of time: fail where drawing then would have
         self.core.reset_rows(rows, [self._rngs[r] for r in rows], scenarios)
         mask = np.zeros(self.num_envs, dtype=bool)
         mask[rows] = True
@@ -107,6 +115,7 @@ class ACCVectorEnv(VectorEnv):
             raise ValueError(f"unknown reset option(s) {sorted(options)}; known: ['scenarios']")
         if scenarios is not None and len(scenarios) != self.num_envs:
             raise ValueError(f"options['scenarios'] needs {self.num_envs} entries, got {len(scenarios)}")
+        self._drawn = {}
         if self._shards is not None:
             ranges = self._shards.ranges
             outs = self._shards.call("reset", [(seeds[a:b], None if scenarios is None else
@@ -172,6 +181,44 @@ class ACCVectorEnv(VectorEnv):
         self._autoreset = term | trunc
         # the step's observations, unless some scenes restarted since (then all are made afresh)
         return (self._obs() if resetting.size else self.core.last_obs), reward, term, trunc, infos
+
+    def prepare_resets(self) -> int:
+        """Draw now the next scenarios of the environments whose episode just ended, and
+        condense their drivers' QPs, so that the next ``step`` (or :meth:`reset_ended`) only
+        installs them. Returns how many it drew.
+
+        Results do not change, only when the work is done: each environment's generator is
+        used for nothing but its resets, in the same order, and the condensed QPs land in
+        the shared cache that the reset reads (``tests/envs/test_shards.py`` checks the
+        two agree step for step). A worker of ``workers=k`` calls this right after answering
+        a step, while it would otherwise wait for the slowest worker and the caller's policy,
+        which takes most of the episodes' start-up work off the critical path. A ``reset()``
+        drops what was drawn (it seeds new generators anyway).
+
+        Only with the built-in :class:`~acc_gym.envs.config.ScenarioSampler`, a pure function
+        of each environment's generator: an injected scenario generator may keep state of its
+        own, so its calls stay where they were. A draw that fails is reported by the reset
+        that needs it, as it would have been without this call."""
+        if self._shards is not None:
+            return sum(self._shards.call("prepare_resets"))
+        if type(self.core.generator) is not ScenarioSampler:
+            return 0
+        count = 0
+        for r in np.flatnonzero(self._autoreset).tolist():
+            if r in self._drawn:
+                continue
+            try:
+                sc = self.core.draw(self._rngs[r])
+            except Exception as exc:  # noqa: BLE001 - raised by the reset that needs this row
+                sc = exc
+            else:
+                try:
+                    self.core.prepare(sc)
+                except Exception:  # noqa: BLE001, S110 - only a head start: the reset redoes it and reports what fails
+                    pass
+            self._drawn[r] = sc
+            count += 1
+        return count
 
     def reset_ended(self) -> tuple[np.ndarray, np.ndarray]:
         """Reset now, instead of at the next ``step``, the environments whose episode just ended

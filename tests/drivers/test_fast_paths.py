@@ -214,3 +214,29 @@ def test_slot_act_rows_equals_act_and_falls_back_for_mixed_slots():
         rows = random_rows(rng, 4)
         assert np.array_equal(fast.act_rows(rows), ref.act(Observation(*rows)))
         assert fast.info["mode"][2] == -1
+
+
+def test_prepare_condenses_ahead_what_set_params_then_installs():
+    """``MPCDriver.prepare`` puts a driver's follow and cruise QPs in the shared cache, so the
+    later ``set_params`` installs those very objects (no new condensation) and ends with the
+    rows of a driver that was never prepared; what it cannot take it leaves to set_params."""
+    from acc_gym.drivers.qp import condensed_qp
+
+    rng = np.random.default_rng(11)
+    batch = sample_drivers(rng, 4, 25.0)
+    ahead, ref = MPCDriver(batch), MPCDriver(batch)
+    for k in range(6):
+        params = MPCDriverParams(**sample_driver_values(rng, float(rng.uniform(5.0, 35.0))))
+        assert ahead.prepare(params)
+        misses = condensed_qp.cache_info().misses
+        ahead.set_params(k % 4, params)
+        assert condensed_qp.cache_info().misses == misses  # both QPs came from the cache
+        ref.set_params(k % 4, params)
+        for name in DRIVER_STATE:
+            assert np.array_equal(getattr(ahead, name), getattr(ref, name)), (k, name)
+    bad = MPCDriverParams(**sample_driver_values(rng, 20.0))
+    object.__setattr__(bad, "r1", 0.0)  # past the params' own checks: the QP's check refuses it
+    assert not ahead.prepare(bad)  # not raised ahead of time ...
+    with pytest.raises(ValueError, match="r1"):
+        ahead.set_params(0, bad)  # ... but where it is installed
+    assert not ahead.prepare(sample_drivers(rng, 2, 20.0))  # a batch: nothing done ahead

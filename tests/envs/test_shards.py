@@ -126,3 +126,89 @@ def test_a_failing_worker_raises_in_the_parent_with_its_message():
         sharded.reset(seed=0)
     with pytest.raises(RuntimeError, match="closed"):  # the workers were stopped
         sharded.reset(seed=0)
+
+
+# ----------------------------------------------------------------------------- drawing ahead
+def test_drawing_the_next_scenarios_ahead_changes_nothing():
+    """``prepare_resets`` (what each worker does after answering a step) draws the ended
+    environments' next scenarios early; stepping, autoresets, ``reset_ended`` and a
+    ``reset`` after drawing ahead give the same results as never drawing ahead."""
+    n = 6
+    ref, ahead = make("acc_gym/SingleLane-v0", n, 1), make("acc_gym/SingleLane-v0", n, 1)
+    assert_same(ref.reset(seed=5), ahead.reset(seed=5))
+    rng = np.random.default_rng(2)
+    drawn, reseeded = 0, False
+    for k in range(160):
+        a = rng.uniform(-1.0, 1.0, (n, 1)).astype(np.float32)
+        out_ref, out_ahead = ref.step(a), ahead.step(a)
+        assert_same(out_ref, out_ahead, f"step {k}")
+        ended = int(np.sum(out_ref[2] | out_ref[3]))
+        count = ahead.prepare_resets()
+        assert count == ended and ahead.prepare_resets() == 0  # each ended environment, once
+        drawn += count
+        if k == 70 and count:
+            rows_ref, obs_ref = ref.reset_ended()
+            rows_ahead, obs_ahead = ahead.reset_ended()
+            assert np.array_equal(rows_ref, rows_ahead) and np.array_equal(obs_ref, obs_ahead)
+        if k >= 100 and count and not reseeded:  # drawn ahead, then dropped: reset() seeds new generators
+            assert_same(ref.reset(seed=8), ahead.reset(seed=8))
+            reseeded = True
+    assert drawn >= 5 and reseeded
+
+
+def test_a_draw_ahead_that_fails_is_raised_by_the_reset_that_needs_it(monkeypatch):
+    env = make("acc_gym/NCAP-v0", 2, 1)
+    env.reset(seed=0, options={"scenarios": ["ncap/ccrs/50", "ncap/ccrm/50"]})
+    zero = np.zeros((2, 1), np.float32)
+    for _ in range(20):  # the stationary target (ccrs/50) is hit at step 20
+        env.step(zero)
+
+    def broken(rng):
+        raise RuntimeError("generator broke")
+
+    monkeypatch.setattr(env.core, "draw", broken)
+    assert env.prepare_resets() == 1  # not raised here ...
+    with pytest.raises(RuntimeError, match="generator broke"):
+        env.step(zero)  # ... but by the step that resets environment 0
+
+
+def test_an_injected_generator_is_not_called_ahead():
+    """A user's scenario generator may keep state, so its calls stay where they were."""
+    from acc_gym.envs.config import ScenarioSampler
+
+    calls = []
+
+    class Counting:
+        sampler = None
+
+        def __call__(self, rng):
+            calls.append(1)
+            return self.sampler(rng)
+
+    gen = Counting()
+    env = make("acc_gym/NCAP-v0", 2, 1, scenario_generator=gen)
+    gen.sampler = ScenarioSampler(env.config)
+    env.reset(seed=0, options={"scenarios": ["ncap/ccrs/50", "ncap/ccrm/50"]})
+    zero = np.zeros((2, 1), np.float32)
+    for _ in range(20):
+        env.step(zero)
+    assert env.prepare_resets() == 0 and not calls
+    env.step(zero)
+    assert len(calls) == 1  # drawn by the autoreset, as without prepare_resets
+
+
+def test_workers_draw_ahead_and_still_equal_the_in_process_env():
+    n = 4
+    ref, sharded = make("acc_gym/NCAP-v0", n, 1), make("acc_gym/NCAP-v0", n, 2)
+    try:
+        options = {"scenarios": ["ncap/ccrs/50", "ncap/ccrs/50", "ncap/ccrm/50", "ncap/ccrs/50"]}
+        assert_same(ref.reset(seed=2, options=options), sharded.reset(seed=2, options=options))
+        zero = np.zeros((n, 1), np.float32)
+        for _ in range(20):
+            assert_same(ref.step(zero), sharded.step(zero))
+        # each worker drew its ended environments' next scenarios after answering that step
+        assert sharded.prepare_resets() == 0
+        for _ in range(30):
+            assert_same(ref.step(zero), sharded.step(zero))
+    finally:
+        sharded.close()
