@@ -124,11 +124,13 @@ def main(argv=None) -> dict:
         out["vector_env_workers_steps_per_s"] = float(np.median(work))
         out["vector_env_workers_steps_per_s_runs"] = [round(x) for x in work]
     if args.policy:
-        for workers, key in ((1, "vector_env_policy_steps_per_s"), (args.workers, "vector_env_workers_policy_steps_per_s")):
-            if workers > 1 or key == "vector_env_policy_steps_per_s":
-                runs = [vector_policy_rate(args.num_envs, args.vector_steps, r, workers) for r in range(args.repeats)]
-                out[key] = float(np.median(runs))
-                out[key + "_runs"] = [round(x) for x in runs]
+        cases = [(1, "vector_env_policy_steps_per_s")]
+        if args.workers > 1:
+            cases.append((args.workers, "vector_env_workers_policy_steps_per_s"))
+        for workers, key in cases:
+            runs = [vector_policy_rate(args.num_envs, args.vector_steps, r, workers) for r in range(args.repeats)]
+            out[key] = float(np.median(runs))
+            out[key + "_runs"] = [round(x) for x in runs]
     if args.parallel:
         vector_env_rate(min(args.num_envs, 16), 20, 99, parallel=True)
         par = [vector_env_rate(args.num_envs, args.vector_steps, r, parallel=True) for r in range(args.repeats)]

@@ -81,8 +81,8 @@ class EpisodeBatch:
         """Start new episodes in scenes ``rows``: each draws its scenario with its generator
         (``rngs[j]``) unless ``scenarios[j]`` is given."""
         rows = [int(r) for r in np.atleast_1d(rows)]
-        chosen = [sc if scenarios is not None and sc is not None else self.draw(rngs[j])
-                  for j, sc in enumerate(scenarios if scenarios is not None else [None] * len(rows))]
+        given = scenarios if scenarios is not None else [None] * len(rows)
+        chosen = [sc if sc is not None else self.draw(rngs[j]) for j, sc in enumerate(given)]
         for sc in chosen:
             if not isinstance(sc, Scenario):
                 raise TypeError(f"the scenario generator must return a Scenario, got {type(sc).__name__}")
