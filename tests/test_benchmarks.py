@@ -39,3 +39,12 @@ def test_bench_campaign_json_keys():
     assert out["scenarios"] == 2  # 0.005 h = 18 s: the first two NCAP tests
     for key in ("scenarios_per_s_1_worker", "scenarios_per_s_2_workers", "scenarios_per_s_dask_2_workers"):
         assert out[key] > 0 and len(out[key + "_runs"]) == 1
+
+
+def test_reproducibility_json_keys():
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "reproducibility.py"), "--json", "--per-suite", "2",
+                        "--trials", "1"], capture_output=True, text=True, check=True, cwd=ROOT)
+    out = json.loads(r.stdout)
+    assert out["episodes"] == 8 and out["trials"] == 1 and out["controller"] == "acc"
+    assert 0.0 <= out["median_score_change"] <= out["max_score_change"] <= out["score_tolerance"]
+    assert out["verdicts_changed"] == 0 and out["max_speed_change"] < 1e-6

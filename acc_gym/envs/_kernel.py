@@ -18,6 +18,7 @@ import math
 import numba
 import numpy as np
 
+from acc_gym.evaluation.scoring import SPEED_TOL
 from acc_gym.simulation import _world_kernel as _W
 
 # rows of criteria()'s float output
@@ -69,7 +70,7 @@ def criteria(t, v, a, lead_all, gap_all, a_prev, dt, set_speed, tau1, grace, cfg
         fl[F_Q, i] = q
         bo[B_HAS, i] = has
         bo[B_IN_BAND, i] = has and gs > 0 and q > 0 and q < bw * gs
-        too_fast = v0 > set_speed[i] + lead_margin
+        too_fast = v0 > set_speed[i] + lead_margin + SPEED_TOL  # as score_episode
         followable = has and v0 > moving and not too_fast
         bo[B_FOLLOWABLE, i] = followable
         settled = ti - last_change[i] >= transient

@@ -41,7 +41,10 @@ paper 003's test, a tailgater does not -- with these rules:
   qualified. "Faster than the set speed" is meant strictly (``lead_margin`` = 0): an ACC
   does not exceed its driver's set speed, so a lead above it cannot be followed in the
   band, and counting it (as 0.1.0 did, within ``steady_dv``) failed ACCs that held their
-  set speed and taught learnt policies to speed. An ego that is still *closing in
+  set speed and taught learnt policies to speed. "Above" means by more than
+  ``SPEED_TOL`` (1e-6 m/s): a scripted lead that cruises *at* the set speed is followable
+  on every machine, although its simulated speed may land a last bit above or below it
+  (it did: one ulp flipped a car-following/120 episode of the linear ACC by 34 points). An ego that is still *closing in
   efficiently* at every such sample is not hanging back: the test ended before steady following was reachable (paper 004's
   approach scenarios start up to 200 m behind a slower lead and may last only seconds),
   so the band is not judged (qualified, ``detail["approaching"]``) and efficiency is
@@ -92,6 +95,9 @@ DEFAULT_TAU1 = 1.5  # [s] when neither the config nor the trace gives one
 SAFETY_RULES = ("proper-response", "literal")
 BAND_RULES = ("steady-share", "literal")
 ITEM_POINTS = 15.0
+
+
+SPEED_TOL = 1e-6  # [m/s] a lead counts as faster than the set speed only by more than this
 
 
 @dataclass(frozen=True)
@@ -289,7 +295,7 @@ def score_episode(trace: EgoTrace, config: ScoringConfig | None = None) -> Episo
     band = in_band(q, gs, cfg.band_width)
     u_t = efficiency_u(q, gs, cfg.band_width, clip=cfg.clip)
     moving = (trace.v > cfg.moving_speed) & (v0 > cfg.moving_speed)
-    too_fast = np.zeros(trace.n, dtype=bool) if trace.set_speed is None else v0 > trace.set_speed + cfg.lead_margin
+    too_fast = np.zeros(trace.n, dtype=bool) if trace.set_speed is None else v0 > trace.set_speed + cfg.lead_margin + SPEED_TOL
     followable = has & (v0 > cfg.moving_speed) & ~too_fast  # a vehicle ahead the ego could follow
     free = ~(has & (trace.gap <= cfg.sensor_range)) | (has & too_fast)  # nothing in view to follow
     if cfg.band == "literal":

@@ -16,6 +16,24 @@ secret-free: the first four bytes of ``sha256("acc_gym.suites:<name>:<split>")``
 the test split is not hidden, only separate -- a controller tuned on dev meets other
 scenarios on test, and a new version (a new name) gets new seeds.
 
+Machine independence: the same definition on every machine. The sampled parameters
+come from transcendental functions (``exp``, ``log``, ...) whose last bits differ between
+CPU instruction sets (numpy's AVX-512 ``exp`` is not its AVX2 ``exp``), so a parameter
+drawn on one machine can differ from the same draw on another in its last bit or two.
+:meth:`Suite.scenario` therefore **rounds every parameter to** ``PARAM_DECIMALS`` **(6)
+decimals** -- a micrometre, a microsecond, a micrometre per second: far below anything
+physical, far above a last-bit difference (about 1e-14 for values below 100) -- and
+*builds the scenario from the rounded values*; the definition stores exactly those
+values and :meth:`Suite.episodes` builds from them, never re-deriving them. Decimal
+rounding of a double is exact and platform-independent in Python (``round`` is correctly
+rounded), so regenerating a suite on any machine gives byte-identical data, unless a
+drawn value lies within a last-bit difference of a rounding boundary (a chance of about
+1e-8 per value, ~1e-5 per suite). What is *not* bit-identical across machines: what the
+episode's build derives from the seed (the surrounding drivers' sampled parameters, a
+lead's speed profile) and the simulation itself (compiled code may fuse multiply-adds
+differently), so trajectories and scores are reproducible to a tolerance (measured in
+``tests/suites/test_reproducibility.py``), not to the bit.
+
 Hashes: :meth:`Suite.hash` is the sha256 of the canonical JSON (sorted keys, no
 whitespace, no NaN) of the definition, so it changes when any id, parameter, seed,
 driver choice, root seed or the environment id changes, and never with dict key order.
@@ -42,6 +60,7 @@ from acc_gym.scenarios.spec import Scenario
 SPLITS = ("dev", "test")
 HOUR = 3600.0  # [s]
 ROUND_DECIMALS = 6  # of the content digest
+PARAM_DECIMALS = 6  # a suite episode's parameters are stored and built at this many decimals
 
 
 def canonical_json(obj) -> str:
@@ -74,6 +93,20 @@ def _rounded(x):
             return str(x)
         return round(x, ROUND_DECIMALS) + 0.0  # + 0.0: no "-0.0"
     return x
+
+
+def canonical_params(params: dict) -> dict:
+    """``params`` with every value rounded to ``PARAM_DECIMALS`` decimals (``-0.0`` as ``0.0``):
+    the canonical form a suite stores and builds from (see the module docstring)."""
+    return {str(k): round(float(v), PARAM_DECIMALS) + 0.0 for k, v in params.items()}
+
+
+def canonical_scenario(sc: Scenario) -> Scenario:
+    """``sc`` built again from its canonical parameters (itself when they are canonical already)."""
+    params = canonical_params(sc.params)
+    if params == sc.params:
+        return sc
+    return build(sc.id, params, sc.seed, sc.drivers)
 
 
 def content_digest(scenarios: list[Scenario]) -> str:
@@ -132,11 +165,12 @@ class Suite:
         return derive_root_seed(self.name, split)
 
     def scenario(self, index: int, split: str = "test") -> Scenario:
-        """Scenario ``index`` of the split's stream (a pure function of ``(index, split)``)."""
+        """Scenario ``index`` of the split's stream (a pure function of ``(index, split)``),
+        built from its canonical (rounded) parameters."""
         if isinstance(index, bool) or int(index) != index or index < 0:
             raise ValueError(f"index must be a non-negative integer, got {index!r}")
         rng = np.random.default_rng([int(index), self.root_seed(split)])
-        return self.generator(int(index), rng)
+        return canonical_scenario(self.generator(int(index), rng))
 
     def stream(self, split: str = "test", hours: float | None = None, start: int = 0) \
             -> Iterator[tuple[int, Scenario]]:

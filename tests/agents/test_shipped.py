@@ -9,6 +9,7 @@ import pytest
 
 from acc_gym.evaluation.runner import evaluate, load_controller
 from agents.policies import SHIPPED, load_shipped, shipped_path
+from acc_gym.reproducibility import SCORE_TOLERANCE
 from agents.policies.heldout import FAMILIES, heldout, meets_bar
 from agents.rl.mlp import NumpyActor
 from agents.rl.policy import SB3Policy
@@ -83,6 +84,7 @@ def test_the_recorded_heldout_results_reproduce():
                       recorded["seed"])
     for name, families in recorded["results"].items():
         for family, s in families.items():
-            assert results[name][family]["mean_score"] == pytest.approx(s["mean_score"], abs=1e-9)
+            # across machines scores agree to the documented tolerance, not to the bit
+            assert results[name][family]["mean_score"] == pytest.approx(s["mean_score"], abs=SCORE_TOLERANCE)
             assert results[name][family]["share_qualified"] == s["share_qualified"]
     assert meets_bar(results, "ppo-acc") == []
