@@ -416,12 +416,16 @@ def _add_leaderboard_parser(sub) -> None:
     p.add_argument("--budget", type=float, default=DEFAULT_BUDGET, help="seconds per controller in all")
     p.add_argument("--episodes", type=int, default=None, help="run at most N episodes of each suite")
     p.add_argument("--no-report", action="store_true", help="skip report.html (and its episode re-runs)")
+    p.add_argument("--sandbox", choices=("process", "bwrap"), default="process",
+                   help="how controllers are contained: process (own process, session, limits and, as root, "
+                        "user id) or bwrap (bubblewrap: read-only root, no network, own PID namespace)")
     p.add_argument("--json", action="store_true", help="print the ranking as one JSON object")
 
 
 def _leaderboard(args, parser) -> int:
     from acc_gym.leaderboard import run_leaderboard
     from acc_gym.leaderboard.results import text_table
+    from acc_gym.leaderboard.run import OutputError
 
     suites = None if args.suite is None else [s.strip() for arg in args.suite for s in arg.split(",") if s.strip()]
 
@@ -431,23 +435,31 @@ def _leaderboard(args, parser) -> int:
             print(f"  {outcome.reference}: {len(outcome.episodes)} episodes in {outcome.wall_time_s:.1f} s, "
                   f"{state}", file=sys.stderr, flush=True)
 
+    def show(results):  # the ranking, printed before anything is written
+        if args.json:
+            by_name = {c["name"]: c for c in results["controllers"]}
+            print(json.dumps({"ranking": [{"controller": n, "rank": by_name[n]["rank"], "status": by_name[n]["status"],
+                                           "reason": by_name[n]["reason"],
+                                           "summary": by_name[n]["summary"] and by_name[n]["summary"]["overall"]}
+                                          for n in results["ranking"]], "out": str(args.out)}), flush=True)
+        else:
+            m = results["manifest"]
+            print(f"leaderboard, split {m['split']}: " + ", ".join(
+                f"{s['name']} ({s['episodes_run']} episodes, sha256 {s['hash'][:12]})" for s in m["suites"]))
+            print(text_table(results), flush=True)
+
     try:
         results = run_leaderboard(suites, args.split, args.controllers, out=args.out, workers=args.workers,
                                   step_budget=args.step_budget, budget=args.budget, episodes=args.episodes,
-                                  report=not args.no_report, progress=progress)
+                                  report=not args.no_report, progress=progress, sandbox=args.sandbox, show=show)
+    except OutputError as exc:
+        print(f"acc-gym leaderboard: error: {exc}", file=sys.stderr)
+        return 1
     except (ValueError, TypeError) as exc:
         parser.error(str(exc))
-    if args.json:
-        by_name = {c["name"]: c for c in results["controllers"]}
-        print(json.dumps({"ranking": [{"controller": n, "status": by_name[n]["status"], "reason": by_name[n]["reason"],
-                                       "summary": by_name[n]["summary"] and by_name[n]["summary"]["overall"]}
-                                      for n in results["ranking"]], "files": results["files"]}))
-    else:
-        m = results["manifest"]
-        print(f"leaderboard, split {m['split']}: " + ", ".join(
-            f"{s['name']} ({s['episodes_run']} episodes, sha256 {s['hash'][:12]})" for s in m["suites"]))
-        print(text_table(results))
-        print(f"files: {', '.join(results['files'].values())} ({m['timings']['total_wall_s']:.0f} s)")
+    if not args.json:
+        print(f"files: {args.out}/ ({', '.join(sorted(results['files']))}, logs/) "
+              f"({results['manifest']['timings']['total_wall_s']:.0f} s)")
     return 0
 
 

@@ -63,47 +63,74 @@ def _action(controller, obs):
     return out[0] if isinstance(out, tuple) else out
 
 
+def as_action(out, controller=None) -> np.ndarray:
+    """A controller's answer (``predict``'s action) as the env's ``(1,)`` float32 action;
+    ``ValueError`` naming the shape otherwise."""
+    action = np.asarray(out, dtype=np.float32)
+    if action.shape not in ((1,), ()):
+        raise ValueError(f"controller {controller!r} returned an action of shape {action.shape}; expected (1,)")
+    return action.reshape(1)
+
+
+class EpisodeRun:
+    """One episode of a (single) ACC environment stepped from outside: whoever holds it
+    owns the environment, the scoring and the recording, and only feeds actions in.
+
+    :func:`run_episode` drives it with a controller in the same process; the leaderboard
+    drives it with actions that come back from a controller in another process, so both
+    produce the same bits for the same actions."""
+
+    KEYS = ("x", "v", "a", "a_des", "y", "a_y", "lead", "gap", "mode")
+
+    def __init__(self, env, *, seed: int | None = None, scenario=None, record: bool = True):
+        self.env, self.record, self.done, self.info = env, record, False, None
+        options = {"scenario": scenario} if scenario is not None else None
+        self.obs, _ = env.reset(seed=seed, options=options)
+        self.world = env.unwrapped.core.world
+        self.rows: dict[str, list] = {k: [] for k in self.KEYS}
+        if record:
+            self._snap(np.full(2, -1))
+
+    def _snap(self, modes) -> None:
+        world = self.world
+        for key in ("x", "v", "a", "a_des", "y", "a_y"):
+            self.rows[key].append(getattr(world, key)[:1].copy())
+        self.rows["lead"].append(world.neighbours.lead[:1].copy())
+        self.rows["gap"].append(world.neighbours.gap[:1].copy())
+        self.rows["mode"].append(np.concatenate([[-1], modes])[None, :])
+
+    def step(self, action: np.ndarray) -> bool:
+        """Apply one ``(1,)`` float32 action; True once the episode has ended."""
+        self.obs, _, term, trunc, self.info = self.env.step(action)
+        if self.record:
+            self._snap(self.info["modes"])
+        self.done = bool(term or trunc)
+        return self.done
+
+    def trace(self):
+        """The whole scene as a :class:`~acc_gym.simulation.single_lane.WorldTrace` (needs ``record``)."""
+        from acc_gym.simulation.single_lane import WorldTrace
+
+        world = self.world
+        arr = {k: np.stack(v) for k, v in self.rows.items()}
+        return WorldTrace(t=np.arange(len(self.rows["x"])) * world.dt, **arr, present=world.present[:1].copy(),
+                          lengths=world.lengths[:1].copy(), width=world.width[:1].copy(),
+                          road=self.env.unwrapped.scenario.road)
+
+
 def run_episode(env, controller, *, seed: int | None = None, scenario=None, record: bool = True):
     """One episode of a (single) ACC environment driven by ``controller``.
 
     Returns ``(final_info, trace)``: the last step's info (score, report, ...) and, with
     ``record``, the whole scene as a :class:`~acc_gym.simulation.single_lane.WorldTrace`
     (for :func:`acc_gym.plotting.plot_episode`)."""
-    from acc_gym.simulation.single_lane import WorldTrace
-
     policy = load_controller(controller)
-    base = env.unwrapped
-    options = {"scenario": scenario} if scenario is not None else None
-    obs, info = env.reset(seed=seed, options=options)
+    run = EpisodeRun(env, seed=seed, scenario=scenario, record=record)
     if hasattr(policy, "reset"):
         policy.reset()
-    world = base.core.world
-    rows: dict[str, list] = {k: [] for k in ("x", "v", "a", "a_des", "y", "a_y", "lead", "gap", "mode")}
-
-    def snap(modes):
-        for key in ("x", "v", "a", "a_des", "y", "a_y"):
-            rows[key].append(getattr(world, key)[:1].copy())
-        rows["lead"].append(world.neighbours.lead[:1].copy())
-        rows["gap"].append(world.neighbours.gap[:1].copy())
-        rows["mode"].append(np.concatenate([[-1], modes])[None, :])
-
-    if record:
-        snap(np.full(2, -1))
-    while True:
-        action = np.asarray(_action(policy, obs), dtype=np.float32)
-        if action.shape not in ((1,), ()):
-            raise ValueError(f"controller {controller!r} returned an action of shape {action.shape}; expected (1,)")
-        obs, _, term, trunc, info = env.step(action.reshape(1))
-        if record:
-            snap(info["modes"])
-        if term or trunc:
-            break
-    if not record:
-        return info, None
-    arr = {k: np.stack(v) for k, v in rows.items()}
-    trace = WorldTrace(t=np.arange(len(rows["x"])) * world.dt, **arr, present=world.present[:1].copy(),
-                       lengths=world.lengths[:1].copy(), width=world.width[:1].copy(), road=base.scenario.road)
-    return info, trace
+    while not run.step(as_action(_action(policy, run.obs), controller)):
+        pass
+    return run.info, (run.trace() if record else None)
 
 
 def evaluate(controller, env_id: str = "acc_gym/CarFollowing-v0", episodes: int = 10, seed: int = 0,

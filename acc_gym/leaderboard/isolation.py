@@ -1,40 +1,33 @@
-"""Run each controller in its own process, with a per-step and a total time budget.
+"""Run each controller against a trusted simulation, with a per-step and a total budget.
 
-Why processes: a controller under test is foreign code. In its own process a crash
-(an exception, even a segfault in an extension), a hang or a runaway allocation takes
-down only that controller: the parent marks it ``failed`` with the reason and the other
-controllers finish. The start method is ``spawn`` everywhere (never ``fork``: the
-parent may hold threads -- numba, BLAS, a progress bar -- that ``fork`` would copy
-half-locked into the child).
+The trust boundary. For every controller the runner starts a **simulation process**
+(trusted code: ``spawn``, never ``fork``) that owns the environments, the scenarios, the
+scoring, the clocks and the episode records, and that starts the controller in a
+**sandboxed process** of its own (:mod:`acc_gym.leaderboard.sandbox`). The two talk
+through a socket in fixed binary frames (:mod:`acc_gym.leaderboard.protocol`): the
+simulation sends the observation rows of the episodes in flight (``IN_FLIGHT``, 16, at a
+time, so one round trip serves 16 steps) with episode-start flags; the controller answers
+one action per row. The controller never holds a reference to a simulator, a scenario
+or a score, and nothing it sends is unpickled. Every record the runner receives was made
+by the simulation process, so a controller cannot report a score, skip an episode or
+end early: a controller is ``ok`` only when the simulation finished every scheduled
+episode, each once.
 
-What the child gets: the controller *reference* (a built-in name, ``module:attribute``
-or a saved model path; loaded in the child by
-:func:`acc_gym.evaluation.runner.load_controller`, so a controller that fails to import
-fails in its own process too) and its episodes as built
-:class:`~acc_gym.scenarios.spec.Scenario` values. ``spawn`` gives the child the parent's
-``sys.path`` and working directory (multiprocessing's preparation data), so a module
-importable in the parent -- a test helper on ``sys.path``, a package in the current
-directory -- is importable in the child; nothing else of the parent's state is.
+Budgets, measured by the simulation process (the controller's clocks are its own):
 
-Budgets:
+* **step budget** [s]: per ``predict`` call, so a round trip of ``n`` rows may take
+  ``n`` step budgets, from sending the observations to receiving the last byte of the
+  actions. The first round trip is exempt (loading weights, compiling lazily): only the
+  total budget bounds it. Past it the controller is killed and ``failed``.
+* **total budget** [s]: from the controller's start (imports and loading included) to
+  its last answer.
 
-* **step budget** [s]: each ``predict`` call. The child stamps the start of every call in
-  shared memory (``time.monotonic``, a system-wide clock on Linux, macOS and Windows);
-  the parent kills a child whose call has been running longer than the budget (a hang),
-  and the child itself fails a call that returned late. The first ``predict`` call is
-  exempt (it may load weights or compile lazily): only the total budget bounds it.
-* **total budget** [s]: from the child's start (imports and loading included) to its
-  last episode; past it the parent kills the child.
-
-Everything else that goes wrong in the child -- the controller raises, returns NaN or a
-wrong shape (the evaluator and the environment raise ``ValueError`` naming it), the
-process dies -- is reported as ``failed`` with the reason and the traceback. Episodes
-finished before a failure are kept (reported, not ranked).
-
-The child sends one message per episode (its report's score, qualification and
-metrics), so the parent knows how far it got; with ``traces=True`` it then re-runs its
-worst episode (lowest score, then a collision first, then the earliest) with
-``record=True`` and sends the trace for the report's plots.
+Everything else that goes wrong -- the controller raises, returns NaN or a wrong shape,
+breaks the protocol, dies -- is reported as ``failed`` with the reason (and the
+controller's traceback when it sent one); episodes finished before a failure are kept
+(reported, not ranked). With ``traces=True`` the simulation then re-runs the worst
+episode (lowest score, then a collision first, then the earliest) with recording, for
+the report's plots. The controller's standard output and error go to its own log file.
 """
 
 from __future__ import annotations
@@ -48,7 +41,8 @@ from multiprocessing.connection import wait
 from acc_gym.scenarios.spec import Scenario
 
 START_METHOD = "spawn"
-POLL_S = 0.05  # [s] how often the parent looks at its children's clocks
+POLL_S = 0.05  # [s] how often the runner looks at its simulations
+IN_FLIGHT = 16  # episodes a controller answers per round trip
 
 
 class StepBudgetExceeded(RuntimeError):
@@ -82,7 +76,13 @@ def episode_record(job: Job, info: dict) -> dict:
     return {"suite": job.suite, "split": job.split, "episode": job.episode, "scenario": job.scenario.id,
             "scenario_seed": job.scenario.seed, "group": group_of(job.scenario.id),
             "duration": float(job.scenario.duration), "simulated": float(info["t"]),
-            "score": float(report["score"]), "qualified": bool(report["qualified"]), "metrics": report["metrics"]}
+            "score": float(report["score"]), "points": episode_points(report),
+            "qualified": bool(report["qualified"]), "metrics": report["metrics"]}
+
+
+def episode_points(report: dict) -> float:
+    """The leaderboard's points for one episode: its 100-point score, 0 if it collided."""
+    return 0.0 if report["metrics"]["collision"] else float(report["score"])
 
 
 def worst_index(records: list[dict]) -> int | None:
@@ -93,74 +93,148 @@ def worst_index(records: list[dict]) -> int | None:
                key=lambda k: (records[k]["score"], not records[k]["metrics"]["collision"], k))
 
 
-class Guarded:
-    """The controller behind a stopwatch (see the module docstring)."""
-
-    def __init__(self, controller, clock, step_budget: float, reference: str):
-        self.controller, self.clock, self.step_budget, self.reference = controller, clock, step_budget, reference
-        self.calls = 0
-
-    def __repr__(self) -> str:
-        return repr(self.reference)
-
-    def reset(self) -> None:
-        if hasattr(self.controller, "reset"):
-            self.controller.reset()
-
-    def predict(self, obs, deterministic: bool = True):
-        first = self.calls == 0
-        self.calls += 1
-        start = time.monotonic()
-        if not first:
-            self.clock.value = start
-        try:
-            out = self.controller.predict(obs, deterministic=deterministic)
-        finally:
-            self.clock.value = 0.0
-        if not first and time.monotonic() - start > self.step_budget:
-            raise StepBudgetExceeded(step_budget_message(self.step_budget))
-        return out
+def _where(jobs: list, indices: list[int], done: int) -> str:
+    job = jobs[min(indices)]
+    more = f" and {len(indices) - 1} more in flight" if len(indices) > 1 else ""
+    return f"{job.suite} episode {job.episode} ({job.scenario.id}){more}, after {done} of {len(jobs)} episodes"
 
 
-def child_main(conn, reference: str, jobs: list, step_budget: float, clock, traces: bool) -> None:
-    """The child process: load the controller, run the jobs, report each (see the module docstring)."""
-    where = "loading the controller"
+class ControllerFailed(Exception):
+    def __init__(self, reason: str, tb: str | None = None):
+        super().__init__(reason)
+        self.reason, self.tb = reason, tb
+
+
+def _exchange(ctl, obs, starts, slots, deadline_step: float | None, deadline_total: float, step_budget: float,
+              budget: float, where: str):
+    """One round trip; the controller's failures as :class:`ControllerFailed`."""
+    from acc_gym.leaderboard import protocol
+
+    deadline = deadline_total if deadline_step is None else min(deadline_step, deadline_total)
+    try:
+        protocol.send_observations(ctl.sock, obs, starts, slots)
+        return protocol.recv_actions(ctl.sock, len(slots), deadline)
+    except protocol.Timeout:
+        if deadline_step is not None and deadline_step < deadline_total:
+            raise ControllerFailed(f"{step_budget_message(step_budget)} (killed at {where})") from None
+        raise ControllerFailed(f"exceeded the total budget of {budget:g} s (killed at {where})") from None
+    except protocol.ControllerError as exc:
+        text = str(exc)
+        first, _, tb = text.partition("\n")
+        raise ControllerFailed(f"{first} (at {where})", tb or None) from None
+    except protocol.ProtocolError as exc:
+        raise ControllerFailed(f"broke the protocol: {exc} (at {where})") from None
+    except (protocol.Closed, OSError):
+        code = ctl.process.wait(timeout=5.0) if ctl.process.poll() is None else ctl.process.returncode
+        raise ControllerFailed(f"the controller's process died (exit code {code}) at {where}") from None
+
+
+def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float, traces: bool, log_path: str,
+             uid: int | None, sandbox: str, in_flight: int) -> None:
+    """The simulation process for one controller (see the module docstring)."""
+    from acc_gym.leaderboard import protocol
+    from acc_gym.leaderboard.sandbox import ControllerProcess, become_subreaper, kill_all
+
+    become_subreaper()
+    started = time.monotonic()
+    deadline_total = started + budget
+    ctl = None
     try:
         import gymnasium as gym
+        import numpy as np
 
         import acc_gym  # noqa: F401  (registers the ids)
-        from acc_gym.evaluation.runner import load_controller, run_episode
+        from acc_gym.evaluation.runner import EpisodeRun
 
-        guarded = Guarded(load_controller(reference), clock, step_budget, reference)
-        envs: dict = {}
-        records = []
-        for job in jobs:
-            where = f"{job.suite} episode {job.episode} ({job.scenario.id}, seed {job.scenario.seed})"
-            env = envs.get(job.env_id) or envs.setdefault(job.env_id, gym.make(job.env_id))
-            info, _ = run_episode(env, guarded, seed=job.scenario.seed, scenario=job.scenario, record=False)
-            records.append(episode_record(job, info))
-            conn.send(("episode", records[-1]))
-        k = worst_index(records)
-        if traces and k is not None:
-            job = jobs[k]
-            where = f"re-running the worst episode, {job.suite} episode {job.episode}"
-            info, trace = run_episode(envs[job.env_id], guarded, seed=job.scenario.seed, scenario=job.scenario,
-                                      record=True)
-            conn.send(("trace", {"position": k, "score": float(info["score"]), "trace": trace}))
-        conn.send(("done", None))
-    except BaseException as exc:  # noqa: BLE001  (whatever the controller does wrong is a result)
-        reason = f"{type(exc).__name__}: {exc}" if not isinstance(exc, StepBudgetExceeded) else str(exc)
+        ctl = ControllerProcess(reference, log_path=log_path, budget=budget, uid=uid, sandbox=sandbox)
         try:
-            conn.send(("failed", {"reason": f"{reason} ({where})", "traceback": traceback.format_exc()}))
-        except (OSError, EOFError):  # the parent has gone
+            protocol.recv_hello(ctl.sock, deadline_total)
+        except protocol.Timeout:
+            raise ControllerFailed(f"exceeded the total budget of {budget:g} s while loading (killed)") from None
+        except protocol.ControllerError as exc:
+            first, _, tb = str(exc).partition("\n")
+            raise ControllerFailed(first, tb or None) from None
+        except (protocol.Closed, protocol.ProtocolError, OSError) as exc:
+            code = ctl.process.wait(timeout=5.0) if ctl.process.poll() is None else ctl.process.returncode
+            raise ControllerFailed(f"the controller's process ended while loading (exit code {code}; {exc!r})") \
+                from None
+        envs: dict = {}
+
+        def env_for(slot: int, env_id: str):
+            return envs.get((slot, env_id)) or envs.setdefault((slot, env_id), gym.make(env_id))
+
+        def run_jobs(order: list[int], record: bool, on_done) -> None:
+            """Run the jobs ``order`` in ``in_flight`` slots, lockstep round trips."""
+            queue = list(order)
+            active: dict[int, list] = {}  # slot -> [job index, EpisodeRun, starts now]
+            first = [True]
+
+            def start(slot: int) -> None:
+                if queue:
+                    j = queue.pop(0)
+                    job = jobs[j]
+                    active[slot] = [j, EpisodeRun(env_for(slot, job.env_id), seed=job.scenario.seed,
+                                                  scenario=job.scenario, record=record), True]
+
+            for slot in range(min(in_flight, len(queue))):
+                start(slot)
+            while active:
+                slots = sorted(active)
+                where = _where(jobs, [active[s][0] for s in slots], len(done_records))
+                obs = np.stack([np.asarray(active[s][1].obs, dtype=float) for s in slots])
+                starts = np.array([active[s][2] for s in slots])
+                step_deadline = None if first[0] else time.monotonic() + step_budget * len(slots)
+                actions = _exchange(ctl, obs, starts, np.array(slots), step_deadline, deadline_total, step_budget,
+                                    budget, where)
+                first[0] = False
+                for s, a in zip(slots, actions):
+                    j, run, _ = active[s]
+                    active[s][2] = False
+                    try:
+                        finished = run.step(np.array([a], dtype=np.float32))
+                    except ValueError as exc:  # the env names a bad action (NaN, infinite)
+                        job = jobs[j]
+                        raise ControllerFailed(f"ValueError: {exc} (at {job.suite} episode {job.episode} "
+                                               f"({job.scenario.id}))") from None
+                    if finished:
+                        del active[s]
+                        on_done(j, run)
+                        start(s)
+
+        done_records: dict[int, dict] = {}
+
+        def record_episode(j: int, run) -> None:
+            done_records[j] = episode_record(jobs[j], run.info)
+            conn.send(("episode", j, done_records[j]))
+
+        run_jobs(list(range(len(jobs))), False, record_episode)
+        ordered = [done_records[j] for j in range(len(jobs))]
+        k = worst_index(ordered)
+        if traces and k is not None:
+            kept = {}
+            run_jobs([k], True, lambda j, run: kept.setdefault("run", run))
+            run = kept["run"]
+            conn.send(("trace", {"position": k, "score": float(run.info["score"]), "trace": run.trace()}))
+        conn.send(("done", None))
+    except ControllerFailed as exc:
+        conn.send(("failed", {"reason": exc.reason, "traceback": exc.tb}))
+    except BaseException as exc:  # noqa: BLE001  (a fault of the simulation itself: reported, never hidden)
+        try:
+            conn.send(("failed", {"reason": f"the simulation failed: {type(exc).__name__}: {exc}",
+                                  "traceback": traceback.format_exc()}))
+        except (OSError, EOFError):
             pass
     finally:
+        if ctl is not None:
+            ctl.close()
+        kill_all(uid)  # anything left of the controller, before the runner hears "done"
+        conn.send(("closed", None)) if not conn.closed else None
         conn.close()
 
 
 @dataclass
 class Outcome:
-    """What the parent learned about one controller."""
+    """What the runner learned about one controller."""
 
     reference: str
     status: str = "running"  # then "ok" or "failed"
@@ -169,110 +243,123 @@ class Outcome:
     episodes: list | None = None
     trace: dict | None = None
     wall_time_s: float = 0.0
+    log: str | None = None
 
 
 class _Running:
-    def __init__(self, ctx, reference: str, jobs: list, step_budget: float, traces: bool):
+    def __init__(self, ctx, reference: str, jobs: list, step_budget: float, budget: float, traces: bool,
+                 log_path: str, uid: int | None, sandbox: str, in_flight: int):
         self.reference, self.jobs = reference, jobs
-        self.outcome = Outcome(reference, episodes=[])
-        self.clock = ctx.RawValue("d", 0.0)
+        self.outcome = Outcome(reference, episodes=[], log=log_path)
+        self.received: dict[int, dict] = {}
+        self.finished = False
         self.conn, child_conn = ctx.Pipe(duplex=False)
-        self.process = ctx.Process(target=child_main, name=f"acc-gym-leaderboard[{reference}]",
-                                   args=(child_conn, reference, jobs, step_budget, self.clock, traces), daemon=True)
+        self.process = ctx.Process(target=simulate, name=f"acc-gym-leaderboard[{reference}]",
+                                   args=(child_conn, reference, jobs, step_budget, budget, traces, log_path, uid,
+                                         sandbox, in_flight), daemon=False)
         self.started = time.monotonic()
         self.process.start()
-        child_conn.close()  # the child holds the only writing end: its death closes the pipe
-
-    def where(self) -> str:
-        n = len(self.outcome.episodes)
-        if n < len(self.jobs):
-            job = self.jobs[n]
-            return f"{job.suite} episode {job.episode} ({job.scenario.id}), after {n} of {len(self.jobs)} episodes"
-        return f"after all {n} episodes"
+        child_conn.close()
 
     def receive(self) -> bool:
-        """Read what the child sent; True once it is finished (done, failed or gone)."""
+        """Read what the simulation sent; True once it has closed (after done or failed)."""
         try:
             while self.conn.poll():
-                kind, payload = self.conn.recv()
+                kind, *payload = self.conn.recv()
                 if kind == "episode":
-                    self.outcome.episodes.append(payload)
+                    j, rec = payload
+                    if j in self.received:
+                        self.fail(f"episode {j} reported twice")
+                    self.received[j] = rec
                 elif kind == "trace":
-                    self.outcome.trace = payload
+                    self.outcome.trace = payload[0]
                 elif kind == "done":
-                    self.outcome.status = "ok"
-                    return True
+                    if sorted(self.received) == list(range(len(self.jobs))):
+                        self.outcome.status = "ok"
+                    else:
+                        self.fail(f"{len(self.received)} of {len(self.jobs)} episodes arrived")
                 elif kind == "failed":
-                    self.fail(payload["reason"], payload["traceback"])
+                    self.fail(payload[0]["reason"], payload[0]["traceback"])
+                elif kind == "closed":
                     return True
         except (EOFError, OSError):
-            self.process.join(5.0)
-            self.fail(f"the controller's process died (exit code {self.process.exitcode}) at {self.where()}")
+            if self.outcome.status == "running":
+                self.fail(f"the simulation process ended (exit code {self.process.exitcode})")
             return True
         return False
 
     def fail(self, reason: str, tb: str | None = None) -> None:
-        self.outcome.status, self.outcome.reason, self.outcome.traceback = "failed", reason, tb
-
-    def check_budgets(self, now: float, step_budget: float, budget: float) -> bool:
-        """Kill the child if it is past a budget; True if it was killed."""
-        started = self.clock.value
-        if started > 0.0 and now - started > step_budget:
-            self.kill(f"{step_budget_message(step_budget)} (killed at {self.where()})")
-            return True
-        if now - self.started > budget:
-            self.kill(f"exceeded the total budget of {budget:g} s (killed at {self.where()})")
-            return True
-        return False
-
-    def kill(self, reason: str) -> None:
-        self.receive()  # keep the episodes it finished
-        if self.outcome.status == "running":
-            self.fail(reason)
-        self.process.kill()
+        if self.outcome.status != "failed":
+            self.outcome.status, self.outcome.reason, self.outcome.traceback = "failed", reason, tb
 
     def close(self) -> Outcome:
-        self.process.join(10.0)
-        if self.process.is_alive():  # pragma: no cover - a child that ignores its end
+        self.process.join(30.0)
+        if self.process.is_alive():  # pragma: no cover - a simulation that does not end
             self.process.kill()
             self.process.join()
         self.conn.close()
+        self.outcome.episodes = [self.received[j] for j in sorted(self.received)]
+        if self.outcome.status == "running":
+            self.fail("the simulation ended without a result")
         self.outcome.wall_time_s = time.monotonic() - self.started
         return self.outcome
 
 
 def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_budget: float, budget: float,
-                 traces: bool = False, progress=None) -> dict[str, Outcome]:
-    """Run ``jobs`` for every controller, each in its own process, ``workers`` at a time.
+                 traces: bool = False, progress=None, log_dir=None, uids: dict | None = None,
+                 sandbox: str = "process", in_flight: int = IN_FLIGHT) -> dict[str, Outcome]:
+    """Run ``jobs`` for every controller, ``workers`` controllers at a time (module docstring).
 
-    Returns ``{reference: Outcome}`` in the order of ``references``. ``progress(outcome)``
-    is called as each controller finishes."""
+    ``uids`` maps a reference to the user id its sandbox runs as (None: the runner's);
+    ``log_dir`` receives one log file per controller. Returns ``{reference: Outcome}`` in
+    the order of ``references``; ``progress(outcome)`` is called as each one finishes."""
+    import tempfile
+
     ctx = multiprocessing.get_context(START_METHOD)
+    log_dir = log_dir or tempfile.mkdtemp(prefix="acc-gym-logs-")
+    uids = uids or {}
     pending = list(references)
     running: list[_Running] = []
     done: dict[str, Outcome] = {}
+    backstop = budget + 120.0  # [s] the simulation enforces the budgets; this only catches its own faults
     try:
         while pending or running:
             while pending and len(running) < workers:
-                running.append(_Running(ctx, pending.pop(0), jobs, step_budget, traces))
+                ref = pending.pop(0)
+                running.append(_Running(ctx, ref, jobs, step_budget, budget, traces, log_file(log_dir, ref),
+                                        uids.get(ref), sandbox, in_flight))
             wait([r.conn for r in running] + [r.process.sentinel for r in running], timeout=POLL_S)
             now = time.monotonic()
             for r in list(running):
                 finished = r.receive()
-                if not finished:
-                    finished = r.check_budgets(now, step_budget, budget)
                 if not finished and not r.process.is_alive():
-                    finished = r.receive()  # a last message may have arrived with its exit
-                    if not finished:
-                        r.fail(f"the controller's process exited (code {r.process.exitcode}) at {r.where()}")
-                        finished = True
+                    finished = r.receive() or True
+                if not finished and now - r.started > backstop:
+                    r.process.kill()
+                    r.fail(f"the simulation did not end within {backstop:g} s")
+                    finished = True
                 if finished:
                     running.remove(r)
                     done[r.reference] = r.close()
                     if progress is not None:
                         progress(done[r.reference])
     finally:
-        for r in running:  # interrupted (Ctrl-C, an error here): leave no orphans
-            r.process.kill()
-            r.process.join()
+        for r in running:  # interrupted (Ctrl-C, an error here): the simulations clean up their controllers
+            r.process.terminate()
+        for r in running:
+            r.process.join(10.0)
+            if r.process.is_alive():
+                r.process.kill()
+                r.process.join()
     return {ref: done[ref] for ref in references}
+
+
+def log_file(log_dir, reference: str) -> str:
+    """The log file of a controller: a readable, unique name derived from its reference."""
+    import hashlib
+    import os
+    import re
+
+    safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", reference)[:60].strip("._") or "controller"
+    tag = hashlib.sha256(reference.encode("utf-8")).hexdigest()[:8]
+    return os.path.join(str(log_dir), f"{safe}-{tag}.log")

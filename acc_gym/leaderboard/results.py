@@ -10,9 +10,17 @@ are the means of the suites' values (otherwise the hour of single-lane traffic, 
 episodes, would drown the 15 car-following tests); collisions per hour pool all hours;
 minimum TTC is the smallest and maximum jerk the largest.
 
-Ranking: controllers that finished by overall mean score (descending; ties by name),
-then the failed ones (by name, unranked, with their reasons). Nothing in the scores or
-the ranking depends on timing or on how many controllers ran in parallel.
+Ranking (:data:`RANKING_RULE`): controllers that finished by overall mean **points**
+(descending), then the failed ones (unranked, with their reasons). An episode's points
+are its paper 003 100-point score, or **0 if it ended in a collision**: the paper's score
+gives a collider the safety item's 45 points, as much as a controller that never moves
+off its set speed's safe side, and a crash must cost more than any timid drive. Equal
+figures (within :data:`~acc_gym.reproducibility.SCORE_TOLERANCE`, what reproduces across
+machines) share a rank and are listed by name; there is no tie-break between different
+controllers' different figures other than the figures. The table shows mean points,
+the mean paper score, share qualified, collisions per hour and minimum TTC side by side.
+Nothing in the scores or the ranking depends on timing or on how many controllers ran
+in parallel.
 
 Files (all written atomically: a temporary file in the same directory, then
 ``os.replace``, so a reader sees the old file or the new one, never half of one):
@@ -42,6 +50,8 @@ from acc_gym.evaluation.runner import summarise
 
 FORMAT = "acc_gym.leaderboard/1"
 HOUR = 3600.0
+RANKING_RULE = ("controllers rank by mean points (each suite weighs the same); an episode's points are its paper 003 "
+                "100-point score, or 0 if it ended in a collision; means equal within 1e-6 share a rank")
 
 
 def canonical_json(obj) -> str:
@@ -57,6 +67,7 @@ def suite_summary(episodes: list[dict]) -> dict:
     s = summarise([{"score": e["score"], "qualified": e["qualified"], "metrics": e["metrics"]} for e in episodes],
                   [e["scenario"] for e in episodes])
     del s["scores"], s["scenarios"]  # the episode records hold them
+    s["mean_points"] = float(np.mean([e["points"] for e in episodes])) if episodes else None
     hours = sum(e["duration"] for e in episodes) / HOUR
     s["hours"] = hours
     s["collisions_per_hour"] = s["collisions"] / hours
@@ -76,7 +87,8 @@ def overall_summary(per_suite: dict) -> dict:
     ttc = [v["min_ttc"] for v in vals if v["min_ttc"] is not None]
     hours = sum(v["hours"] for v in vals)
     collisions = sum(v["collisions"] for v in vals)
-    return {"episodes": sum(v["episodes"] for v in vals), "mean_score": mean("mean_score"),
+    return {"episodes": sum(v["episodes"] for v in vals), "mean_points": mean("mean_points"),
+            "mean_score": mean("mean_score"),
             "share_qualified": mean("share_qualified"), "collisions": collisions, "hours": hours,
             "collisions_per_hour": collisions / hours, "share_comfortable": mean("share_comfortable"),
             "share_safe_spacing": mean("share_safe_spacing"), "min_ttc": min(ttc) if ttc else None,
@@ -90,18 +102,22 @@ def summarise_controller(episodes: list[dict], suites: list[str]) -> dict:
 
 def rank(controllers: list[dict]) -> list[str]:
     """Names in ranking order (see the module docstring); sets each entry's ``rank``."""
-    ok = sorted((c for c in controllers if c["status"] == "ok"),
-                key=lambda c: (-c["summary"]["overall"]["mean_score"], c["name"]))
+    from acc_gym.reproducibility import SCORE_TOLERANCE
+
+    def points(c):
+        return c["summary"]["overall"]["mean_points"]
+
+    ok = sorted((c for c in controllers if c["status"] == "ok"), key=lambda c: (-points(c), c["name"]))
     failed = sorted((c for c in controllers if c["status"] != "ok"), key=lambda c: c["name"])
-    for k, c in enumerate(ok):
-        c["rank"] = k + 1
+    for c in ok:  # 1 + how many are better by more than the tolerance: equal figures share a rank
+        c["rank"] = 1 + sum(points(o) > points(c) + SCORE_TOLERANCE for o in ok)
     for c in failed:
         c["rank"] = None
     return [c["name"] for c in ok + failed]
 
 
 # -- tables ---------------------------------------------------------------------------------
-COLUMNS = ("rank", "controller", "status", "score", "qualified", "collisions_per_hour", "comfortable",
+COLUMNS = ("rank", "controller", "status", "points", "score", "qualified", "collisions_per_hour", "comfortable",
            "safe_spacing", "min_ttc_s", "max_jerk_mps3", "episodes", "wall_time_s", "reason")
 
 
@@ -112,7 +128,7 @@ def table_rows(results: dict) -> list[dict]:
     for name in results["ranking"]:
         c = by_name[name]
         o = c["summary"]["overall"] if c["summary"] else None
-        row = {"rank": c["rank"], "controller": name, "status": c["status"],
+        row = {"rank": c["rank"], "controller": name, "status": c["status"], "points": o and o["mean_points"],
                "score": o and o["mean_score"], "qualified": o and o["share_qualified"],
                "collisions_per_hour": o and o["collisions_per_hour"], "comfortable": o and o["share_comfortable"],
                "safe_spacing": o and o["share_safe_spacing"], "min_ttc_s": o and o["min_ttc"],
@@ -120,7 +136,7 @@ def table_rows(results: dict) -> list[dict]:
                "wall_time_s": c["wall_time_s"], "reason": c["reason"]}
         for suite in results["manifest"]["suites"]:
             s = c["summary"]["suites"][suite["name"]] if c["summary"] else None
-            row[f"score[{suite['name']}]"] = s and s["mean_score"]
+            row[f"points[{suite['name']}]"] = s and s["mean_points"]
         rows.append(row)
     return rows
 
@@ -133,11 +149,12 @@ def _fmt(key: str, value) -> str:
     if key == "wall_time_s":
         return f"{value:.1f}"
     if isinstance(value, float):
-        return f"{value:.2f}" if key != "score" and not key.startswith("score[") else f"{value:.1f}"
+        return f"{value:.1f}" if key in ("points", "score") or key.startswith("points[") else f"{value:.2f}"
     return str(value)
 
 
-HEADERS = {"rank": "#", "controller": "controller", "status": "status", "score": "score", "qualified": "qualified",
+HEADERS = {"rank": "#", "controller": "controller", "status": "status", "points": "points", "score": "paper score",
+           "qualified": "qualified",
            "collisions_per_hour": "collisions/h", "comfortable": "comfortable", "safe_spacing": "safe spacing",
            "min_ttc_s": "min TTC [s]", "max_jerk_mps3": "max jerk [m/s^3]", "episodes": "episodes",
            "wall_time_s": "time [s]"}
@@ -145,11 +162,12 @@ HEADERS = {"rank": "#", "controller": "controller", "status": "status", "score":
 
 def display_columns(results: dict) -> list[tuple[str, str]]:
     """(key, header) of the printed / Markdown / HTML ranking table."""
-    cols = [(k, HEADERS[k]) for k in ("rank", "controller", "status", "score", "qualified", "collisions_per_hour",
-                                       "comfortable", "safe_spacing", "min_ttc_s", "max_jerk_mps3")]
+    cols = [(k, HEADERS[k]) for k in ("rank", "controller", "status", "points", "score", "qualified",
+                                       "collisions_per_hour", "min_ttc_s", "comfortable", "safe_spacing",
+                                       "max_jerk_mps3")]
     suites = results["manifest"]["suites"]
     if len(suites) > 1:
-        cols += [(f"score[{s['name']}]", s["name"]) for s in suites]
+        cols += [(f"points[{s['name']}]", s["name"]) for s in suites]
     return cols + [("episodes", "episodes"), ("wall_time_s", "time [s]")]
 
 
@@ -180,8 +198,9 @@ def markdown(results: dict) -> str:
         return s.replace("|", "\\|")
 
     lines = ["# acc_gym leaderboard", "",
-             (f"Split `{m['split']}` of {suites}; ranked by paper 003's 100-point score "
-              f"(each suite weighs the same). acc_gym {m['versions']['acc_gym']}, {m['created']}."), "",
+             (f"Split `{m['split']}` of {suites}; ranked by mean points: paper 003's 100-point score, 0 for an "
+              f"episode that ended in a collision (each suite weighs the same; equal figures share a rank). "
+              f"acc_gym {m['versions']['acc_gym']}, {m['created']}."), "",
              "| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
     lines += ["| " + " | ".join(esc(c) for c in r) + " |" for r in rows]
     failed = [c for c in results["controllers"] if c["status"] != "ok"]

@@ -28,13 +28,17 @@ from __future__ import annotations
 import math
 import os
 import platform
+import shutil
 import sys
+import tempfile
 import time
 from datetime import datetime, timezone
 from importlib import metadata
+from pathlib import Path
 
-from acc_gym.leaderboard.isolation import START_METHOD, Job, run_isolated
+from acc_gym.leaderboard.isolation import IN_FLIGHT, START_METHOD, Job, run_isolated
 from acc_gym.leaderboard.results import (
+    RANKING_RULE,
     json_safe,
     rank,
     summarise_controller,
@@ -97,13 +101,74 @@ def check_controllers(controllers) -> list[str]:
     return refs
 
 
+class OutputError(OSError):
+    """The results could not be written to ``path``; ``results`` holds them all the same."""
+
+    def __init__(self, path, reason: str, results: dict | None = None):
+        super().__init__(f"could not write the leaderboard to {str(path)!r}: {reason}")
+        self.path, self.results = str(path), results
+
+
+def check_output(out) -> Path:
+    """``out`` as a directory the results can be written to (checked before anything runs):
+    an existing directory, or a new one in an existing, writable parent; an existing file,
+    a missing parent or a read-only place is an :class:`OutputError` naming the path."""
+    out = Path(out).absolute()
+    if out.exists() and not out.is_dir():
+        raise OutputError(out, "it exists and is not a directory")
+    parent = out.parent
+    if not parent.is_dir():
+        raise OutputError(out, f"its parent directory {str(parent)!r} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK) or (out.exists() and not os.access(out, os.W_OK | os.X_OK)):
+        raise OutputError(out, "it is not writable")
+    return out
+
+
+def publish(staging: Path, out: Path) -> None:
+    """Move the finished ``staging`` directory into place as ``out`` (renames in one parent:
+    a reader finds the old complete directory or the new one, never a mix)."""
+    old = None
+    if out.exists():
+        old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", dir=out.parent))
+        os.replace(out, old / out.name)
+    try:
+        os.replace(staging, out)
+    except BaseException:
+        if old is not None:  # put the previous results back
+            os.replace(old / out.name, out)
+        raise
+    finally:
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+
+
+def sandbox_settings(refs: list[str], sandbox: str) -> tuple[dict, dict]:
+    """Per-controller user ids and what the manifest says about the sandbox."""
+    from acc_gym.leaderboard.sandbox import SANDBOXES, UID_BASE, bwrap_available, own_uid_possible
+
+    if sandbox not in SANDBOXES:
+        raise ValueError(f"unknown sandbox {sandbox!r}; use one of {list(SANDBOXES)}")
+    if sandbox == "bwrap" and bwrap_available() is None:
+        raise ValueError("sandbox 'bwrap' needs the bubblewrap program (apt-get install bubblewrap)")
+    possible, why = own_uid_possible([r for r in refs if os.path.exists(r)])
+    base = UID_BASE + 100 * (os.getpid() % 1_000_000)
+    uids = {ref: base + k for k, ref in enumerate(refs)} if possible else {}
+    return uids, {"kind": sandbox, "uid_isolated": possible, "why_not": why or None}
+
+
 def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=None, workers: int = DEFAULT_WORKERS,
                     step_budget: float = DEFAULT_STEP_BUDGET, budget: float = DEFAULT_BUDGET,
-                    episodes: int | None = None, report: bool = True, progress=None) -> dict:
+                    episodes: int | None = None, report: bool = True, progress=None, sandbox: str = "process",
+                    show=None) -> dict:
     """Score ``controllers`` on ``suites`` (names; default all) and rank them; returns the results dict.
 
-    ``out``: a directory to write results.json, results.csv, leaderboard.md and (with
-    ``report``) report.html into. ``progress(outcome)`` is called as each controller ends.
+    ``out``: a directory to write results.json, results.csv, leaderboard.md, (with
+    ``report``) report.html and the controllers' logs (``logs/``) into; it is checked
+    before anything runs, everything is written into a temporary directory beside it that
+    then replaces it, and a failed write raises :class:`OutputError` carrying the results.
+    ``show(results)`` is called with the ranking before anything is written (the CLI
+    prints it there). ``progress(outcome)`` is called as each controller ends.
+    ``sandbox``: ``"process"`` or ``"bwrap"`` (:mod:`acc_gym.leaderboard.sandbox`).
     """
     from acc_gym.suites import SPLITS, get_suite, list_suites
     from acc_gym.suites.suite import content_digest
@@ -123,6 +188,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     if episodes is not None:
         episodes = _positive("episodes", episodes, integer=True)
     traces = out is not None and report
+    uids, sandbox_info = sandbox_settings(refs, sandbox)
+    out_dir = check_output(out) if out is not None else None
 
     jobs, suite_info = [], []
     for s in suite_objs:
@@ -139,8 +206,19 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
 
     t0 = time.monotonic()
     created = datetime.now(timezone.utc).isoformat(timespec="seconds")
-    outcomes = run_isolated(refs, jobs, workers=workers, step_budget=step_budget, budget=budget, traces=traces,
-                            progress=progress)
+    if out_dir is not None:
+        staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
+        logs = staging / "logs"
+    else:
+        staging, logs = None, Path(tempfile.mkdtemp(prefix="acc-gym-logs-"))
+    logs.mkdir(exist_ok=True)
+    try:
+        outcomes = run_isolated(refs, jobs, workers=workers, step_budget=step_budget, budget=budget, traces=traces,
+                                progress=progress, log_dir=logs, uids=uids, sandbox=sandbox)
+    except BaseException:
+        if staging is not None:
+            shutil.rmtree(staging, ignore_errors=True)
+        raise
     entries, trace_map = [], {}
     for ref, o in outcomes.items():
         notes = []
@@ -152,6 +230,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                              f"{o.trace['score']:.3f} when re-run for the report")
         entries.append({"name": ref, "reference": ref, "status": o.status, "reason": o.reason,
                         "traceback": o.traceback, "wall_time_s": o.wall_time_s, "notes": notes,
+                        "log": f"logs/{Path(o.log).name}" if staging is not None else o.log,
                         "summary": summarise_controller(o.episodes, names) if o.status == "ok" else None,
                         "episodes": o.episodes})
     ranking = rank(entries)
@@ -160,17 +239,29 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
         "platform": platform.platform(), "cpu_count": os.cpu_count(), "command": list(sys.argv),
         "suites": suite_info, "split": split, "episodes_cap": episodes, "controllers": refs,
         "settings": {"workers": workers, "step_budget_s": step_budget, "budget_s": budget,
-                     "start_method": START_METHOD},
+                     "start_method": START_METHOD, "in_flight": IN_FLIGHT},
+        "sandbox": sandbox_info, "ranking_rule": RANKING_RULE,
         "timings": {"total_wall_s": time.monotonic() - t0,
                     "controllers_wall_s": {e["name"]: e["wall_time_s"] for e in entries}},
     }
     results = json_safe({"manifest": manifest, "ranking": ranking, "controllers": entries})
-    if out is not None:
+    if show is not None:
+        show(results)
+    if out_dir is None:
+        return results
+    try:
         html = None
         if report:
             from acc_gym.leaderboard.report import render_html
 
             html = render_html(results, trace_map)
-        paths = write_files(results, out, html)
-        results["files"] = {k: str(v) for k, v in paths.items()}  # not in results.json (written before)
+        names = write_files(results, staging, html)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(staging, 0o777 & ~umask)  # as a directory made with mkdir would be (mkdtemp's is private)
+        publish(staging, out_dir)
+    except OSError as exc:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise OutputError(out_dir, f"{type(exc).__name__}: {exc}", results) from exc
+    results["files"] = {k: str(out_dir / Path(v).name) for k, v in names.items()}  # not in results.json
     return results

@@ -49,7 +49,8 @@ def test_cli_prints_the_ranking_and_writes_four_files(cli_run):
     code, text, out = cli_run
     assert code == 0
     results = load_results(out / "results.json")
-    assert sorted(p.name for p in out.iterdir()) == sorted(FILES)  # no temporary files left behind
+    assert sorted(p.name for p in out.iterdir()) == sorted(FILES + ("logs",))  # no temporary files left behind
+    assert [p.name for p in out.parent.iterdir()] == ["board"]  # nor a staging directory beside it
     lines = text.splitlines()
     header = next(k for k, line in enumerate(lines) if line.startswith("#  controller"))
     for k, name in enumerate(results["ranking"]):  # printed in ranking order, with rank numbers
@@ -59,7 +60,7 @@ def test_cli_prints_the_ranking_and_writes_four_files(cli_run):
     md = (out / "leaderboard.md").read_text()
     assert "| # | controller |" in md and all(f"| {n} |" in md for n in results["ranking"])
     csv_lines = (out / "results.csv").read_text().splitlines()
-    assert csv_lines[0].startswith("rank,controller,status,score")
+    assert csv_lines[0].startswith("rank,controller,status,points,score")
     assert [line.split(",")[1] for line in csv_lines[1:]] == results["ranking"]
     html = (out / "report.html").read_text()
     assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") >= 2 + 3

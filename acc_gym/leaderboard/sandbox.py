@@ -1,0 +1,300 @@
+"""A controller's own process: what it may touch, and the code it runs.
+
+The leaderboard ranks strangers' code, so the controller never runs where the
+simulation, the scoring, the clocks or the output live. Its process is started fresh
+(``python -m acc_gym.leaderboard.sandbox``, not forked from the runner) and holds only
+its end of a socket; it receives observations and answers actions
+(:mod:`acc_gym.leaderboard.protocol`). Each episode in flight has its own copy of the
+controller, made before its first call and ``reset()`` at every episode start, and it
+is called with that episode's single observation row, exactly as
+:func:`acc_gym.evaluation.runner.run_episode` calls it -- so a controller's episodes
+are the same bits here as under ``acc-gym evaluate``.
+
+What the process sandbox (``sandbox="process"``, the default) guarantees:
+
+* **no shared memory** with the runner: the simulator, the scenario (the lead's future),
+  the scores and the runner's clocks are in other processes; the controller sees the
+  observation rows, episode-start flags, nothing else;
+* its **own session** (``setsid``), a fresh temporary working directory (also ``HOME``
+  and ``TMPDIR``), a **scrubbed environment** (only ``PATH``, ``PYTHONPATH`` -- the
+  runner's ``sys.path``, so the same modules import --, thread counts of 1 and the
+  temporary directories), standard input closed, standard output and error to its own
+  log file (never the runner's output);
+* **resource limits**: address space (``RLIMIT_AS``, 8 GiB), CPU time (the total budget
+  plus a minute), open files (256); and, with its own user id, processes (64);
+* when the runner is **root**, its **own unprivileged user id** (a different one for every
+  controller of a run): it cannot write the installed package, the suite data, the
+  output directory or another controller's files (root-owned), and it cannot signal
+  (kill, stop, trace) the runner or a sibling controller;
+* **nothing outlives it**: the simulation process that starts it is a child subreaper, so
+  even a double-forked, ``setsid``'d grandchild is reparented to it and killed (with
+  every other process of the controller's user id) before any result is reported.
+
+What it does not guarantee: without root the controller runs as the runner's user,
+so it *can* signal sibling processes and write wherever that user can (the manifest
+says ``"uid_isolated": false``); it can read any file that user can read, and it has
+the network. ``sandbox="bwrap"`` adds what a host needs for untrusted submissions:
+bubblewrap's read-only root, a new PID namespace (nothing else visible, nothing to
+signal), no network, a private ``/tmp``; it needs the ``bwrap`` program.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import resource
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+from acc_gym.leaderboard import protocol
+
+SANDBOXES = ("process", "bwrap")
+ADDRESS_SPACE = 8 << 30  # [bytes] RLIMIT_AS
+OPEN_FILES = 256
+PROCESSES = 64  # RLIMIT_NPROC, applied with an own user id only (it counts per user)
+CPU_MARGIN = 60.0  # [s] RLIMIT_CPU = total budget + this
+UID_BASE = 1_900_000_000  # own user ids: UID_BASE + 100 * (runner pid % 1e6) + controller index
+PR_SET_CHILD_SUBREAPER = 36
+
+
+# -- the controller's side -------------------------------------------------------------------------
+def _answer(controller, obs_row: np.ndarray, reference: str) -> float:
+    from acc_gym.evaluation.runner import _action, as_action
+
+    return float(as_action(_action(controller, obs_row.astype(np.float32)), reference)[0])
+
+
+def serve(sock: socket.socket, reference: str) -> None:
+    """Load the controller, say hello, then answer batches until goodbye."""
+    where = "loading the controller"
+    try:
+        from acc_gym.evaluation.runner import load_controller
+
+        pristine = load_controller(reference)
+        copies: dict[int, object] = {}
+
+        def fresh():  # a copy made before any call: every slot starts from the same state
+            try:
+                return copy.deepcopy(pristine)
+            except Exception:  # noqa: BLE001  (not copyable: load it again)
+                return load_controller(reference)
+
+        protocol.send_frame(sock, protocol.HELLO)
+        step = 0
+        while True:
+            batch = protocol.recv_observations(sock)
+            if batch is None:
+                return
+            obs, starts, slots = batch
+            where = f"step batch {step}"
+            actions = np.empty(obs.shape[0])
+            for i, slot in enumerate(slots):
+                if slot not in copies:
+                    copies[slot] = fresh()
+                if starts[i] and hasattr(copies[slot], "reset"):
+                    copies[slot].reset()
+                actions[i] = _answer(copies[slot], obs[i], reference)
+            protocol.send_actions(sock, actions)
+            step += 1
+    except protocol.Closed:
+        return
+    except BaseException as exc:  # noqa: BLE001  (whatever the controller does wrong is a result)
+        try:
+            first = str(exc).splitlines()[0] if str(exc) else ""
+            protocol.send_error(sock, f"{type(exc).__name__}: {first} (in {where})\n{traceback.format_exc()}")
+        except protocol.Closed:
+            pass
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    fd, reference = int(argv[0]), argv[1]
+    sock = socket.socket(fileno=fd)
+    try:
+        serve(sock, reference)
+    finally:
+        sock.close()
+    return 0
+
+
+# -- the trusted side ------------------------------------------------------------------------------
+def become_subreaper() -> bool:
+    """Make this process a child subreaper (Linux): orphaned descendants come to it."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) == 0
+    except (OSError, AttributeError):  # pragma: no cover - not Linux
+        return False
+
+
+def descendants(root: int | None = None) -> list[int]:
+    """Every living descendant of ``root`` (this process by default), from ``/proc``."""
+    root = os.getpid() if root is None else root
+    children: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat", "rb") as f:
+                stat = f.read()
+        except OSError:
+            continue
+        ppid = int(stat[stat.rindex(b")") + 2:].split()[1])
+        children.setdefault(ppid, []).append(int(entry))
+    out, todo = [], [root]
+    while todo:
+        for c in children.get(todo.pop(), []):
+            out.append(c)
+            todo.append(c)
+    return out
+
+
+def processes_of(uid: int) -> list[int]:
+    out = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            st = os.stat(f"/proc/{entry}")
+        except OSError:
+            continue
+        if st.st_uid == uid:
+            out.append(int(entry))
+    return out
+
+
+def kill_all(uid: int | None, timeout: float = 5.0) -> None:
+    """SIGKILL every descendant of this process (and, with ``uid``, every process of that
+    user id), reap them, until none is left."""
+    end = time.monotonic() + timeout
+    while True:
+        pids = set(descendants())
+        if uid is not None:
+            pids |= set(processes_of(uid))
+        pids.discard(os.getpid())
+        if not pids or time.monotonic() > end:
+            return
+        for pid in pids:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
+        while True:  # reap what we can (our children and the orphans reparented to us)
+            try:
+                pid, _ = os.waitpid(-1, os.WNOHANG)
+            except ChildProcessError:
+                break
+            if pid == 0:
+                break
+        time.sleep(0.01)
+
+
+def _readable_by_others(path: str) -> bool:
+    """Whether ``path`` and every directory above it are open to other users."""
+    p = Path(path).resolve()
+    try:
+        if not (p.stat().st_mode & (0o004 if p.is_file() else 0o005)):
+            return False
+        return all(parent.stat().st_mode & 0o001 for parent in p.parents)
+    except OSError:
+        return False
+
+
+def search_path() -> list[str]:
+    """The runner's ``sys.path`` entries that exist, then its working directory (what the
+    controller imports from: a module in the directory the leaderboard is run from works)."""
+    paths = [p for p in sys.path if p and os.path.exists(p)]
+    return paths + [os.getcwd()] if os.getcwd() not in paths else paths
+
+
+def own_uid_possible(extra_paths=()) -> tuple[bool, str]:
+    """Whether the controller can run as its own user id, and why not."""
+    if os.geteuid() != 0:
+        return False, "the runner is not root"
+    needed = [sys.executable, *search_path(), *extra_paths]
+    closed = [p for p in needed if not _readable_by_others(p)]
+    if closed:
+        return False, f"not readable by other users: {closed[0]}"
+    return True, ""
+
+
+def bwrap_available() -> str | None:
+    return shutil.which("bwrap")
+
+
+class ControllerProcess:
+    """The trusted side's handle on one controller's sandboxed process."""
+
+    def __init__(self, reference: str, *, log_path, budget: float, uid: int | None, sandbox: str = "process"):
+        if sandbox not in SANDBOXES:
+            raise ValueError(f"unknown sandbox {sandbox!r}; use one of {list(SANDBOXES)}")
+        self.reference, self.uid = reference, uid
+        self.workdir = tempfile.mkdtemp(prefix="acc-gym-controller-")
+        os.makedirs(os.path.join(self.workdir, "numba"))
+        if uid is not None:
+            for d in (self.workdir, os.path.join(self.workdir, "numba")):
+                os.chown(d, uid, uid)
+        self.sock, theirs = socket.socketpair()
+        env = {"PATH": "/usr/local/bin:/usr/bin:/bin", "HOME": self.workdir, "TMPDIR": self.workdir,
+               "PYTHONPATH": os.pathsep.join(search_path()), "NUMBA_CACHE_DIR": os.path.join(self.workdir, "numba"),
+               "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+               "NUMBA_NUM_THREADS": "1", "LANG": "C.UTF-8", "PYTHONDONTWRITEBYTECODE": "1"}
+        cmd = [sys.executable, "-m", "acc_gym.leaderboard.sandbox", str(theirs.fileno()), reference]
+        if sandbox == "bwrap":
+            cmd = self._bwrap(cmd, theirs.fileno())
+        cpu = int(budget + CPU_MARGIN)
+
+        def limits():  # in the child, before exec: the controller cannot undo them
+            resource.setrlimit(resource.RLIMIT_AS, (ADDRESS_SPACE, ADDRESS_SPACE))
+            resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu + 5))
+            resource.setrlimit(resource.RLIMIT_NOFILE, (OPEN_FILES, OPEN_FILES))
+            if uid is not None:
+                resource.setrlimit(resource.RLIMIT_NPROC, (PROCESSES, PROCESSES))
+
+        self.log = open(log_path, "ab")
+        kw = dict(user=uid, group=uid, extra_groups=[]) if uid is not None else {}
+        self.process = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=self.log, stderr=self.log,
+                                        cwd=self.workdir, env=env, pass_fds=(theirs.fileno(),),
+                                        start_new_session=True, preexec_fn=limits, close_fds=True, **kw)
+        theirs.close()
+
+    def _bwrap(self, cmd: list[str], fd: int) -> list[str]:
+        exe = bwrap_available()
+        if exe is None:
+            raise RuntimeError("sandbox 'bwrap' needs the bubblewrap program (apt-get install bubblewrap)")
+        return [exe, "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--tmpfs", "/tmp",
+                "--bind", self.workdir, self.workdir, "--unshare-all", "--die-with-parent", "--new-session",
+                "--chdir", self.workdir, *cmd]
+
+    def close(self) -> None:
+        """End the controller and everything it started; remove its working directory."""
+        try:
+            protocol.send_frame(self.sock, protocol.BYE)
+        except (protocol.Closed, OSError):
+            pass
+        self.sock.close()
+        try:
+            self.process.wait(timeout=2.0)
+        except subprocess.TimeoutExpired:
+            pass
+        kill_all(self.uid)
+        if self.process.poll() is None:  # pragma: no cover - killed above
+            self.process.kill()
+        self.process.wait()
+        self.log.close()
+        shutil.rmtree(self.workdir, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
