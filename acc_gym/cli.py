@@ -172,6 +172,14 @@ def _score(args) -> str:
 
 
 def main(argv=None) -> int:
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        print("acc-gym: interrupted", file=sys.stderr)
+        return 130
+
+
+def _main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="acc-gym", description="acc_gym: test ACC controllers in simulation")
     sub = parser.add_subparsers(dest="command", required=True)
     p_sc = sub.add_parser("scenarios", help="list scenario ids, or describe one")

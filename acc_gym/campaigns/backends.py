@@ -7,9 +7,12 @@ pool or the cluster connection.
 
 * ``workers == 1`` without a scheduler: chunks run one after the other in the calling
   process (no start-up cost, plain tracebacks).
-* ``workers > 1``: ``concurrent.futures.ProcessPoolExecutor`` with the ``forkserver``
-  start method where the platform has it, else ``spawn`` -- never ``fork``, which would
-  copy the caller's threads (numba, BLAS) into the children.
+* ``workers > 1``: ``concurrent.futures.ProcessPoolExecutor`` with the ``spawn`` start
+  method -- never ``fork``, which would copy the caller's threads (numba, BLAS) into the
+  children, and not ``forkserver``, whose server outlives a SIGKILLed campaign and keeps
+  its idle workers (about 450 MB each time). Each worker asks the kernel to SIGKILL it
+  when the campaign's process dies (:func:`acc_gym._process.die_with_parent`), so a
+  killed campaign leaves no worker behind (the resource tracker then ends too).
 * ``scheduler``: a Dask distributed cluster -- a scheduler address (``tcp://host:8786``),
   ``"local"`` to start a ``LocalCluster`` of ``workers`` single-threaded processes on
   127.0.0.1 (closed afterwards), or a ``distributed.Client`` you made (left open). Each chunk
@@ -21,9 +24,11 @@ pool or the cluster connection.
 from __future__ import annotations
 
 import multiprocessing
+import os
 from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
+from acc_gym._process import die_with_parent
 from acc_gym.campaigns.episodes import ChunkTask, run_chunk
 from acc_gym.campaigns.errors import CampaignError, require_distributed
 
@@ -36,14 +41,14 @@ def run_inline(tasks: list[ChunkTask]) -> Iterator[tuple[ChunkTask, list[dict]]]
 
 
 def pool_context():
-    methods = multiprocessing.get_all_start_methods()
-    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+    return multiprocessing.get_context("spawn")
 
 
 def run_pool(tasks: list[ChunkTask], workers: int) -> Iterator[tuple[ChunkTask, list[dict]]]:
     if not tasks:
         return
-    pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=pool_context())
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=pool_context(),
+                               initializer=die_with_parent, initargs=(os.getpid(),))
     try:
         pending = {pool.submit(run_chunk, task): task for task in tasks}
         while pending:

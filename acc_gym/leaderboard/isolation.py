@@ -33,6 +33,7 @@ the report's plots. The controller's standard output and error go to its own log
 from __future__ import annotations
 
 import multiprocessing
+import os
 import time
 import traceback
 from dataclasses import dataclass
@@ -130,11 +131,13 @@ def _exchange(ctl, obs, starts, slots, deadline_step: float | None, deadline_tot
 
 
 def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float, traces: bool, log_path: str,
-             uid: int | None, sandbox: str, in_flight: int) -> None:
+             uid: int | None, sandbox: str, in_flight: int, runner_pid: int) -> None:
     """The simulation process for one controller (see the module docstring)."""
     from acc_gym.leaderboard import protocol
-    from acc_gym.leaderboard.sandbox import ControllerProcess, become_subreaper, kill_all
+    from acc_gym._process import become_subreaper, die_with_parent, kill_all
+    from acc_gym.leaderboard.sandbox import ControllerProcess
 
+    die_with_parent(runner_pid)
     become_subreaper()
     started = time.monotonic()
     deadline_total = started + budget
@@ -256,7 +259,7 @@ class _Running:
         self.conn, child_conn = ctx.Pipe(duplex=False)
         self.process = ctx.Process(target=simulate, name=f"acc-gym-leaderboard[{reference}]",
                                    args=(child_conn, reference, jobs, step_budget, budget, traces, log_path, uid,
-                                         sandbox, in_flight), daemon=False)
+                                         sandbox, in_flight, os.getpid()), daemon=False)
         self.started = time.monotonic()
         self.process.start()
         child_conn.close()
@@ -357,7 +360,6 @@ def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_b
 def log_file(log_dir, reference: str) -> str:
     """The log file of a controller: a readable, unique name derived from its reference."""
     import hashlib
-    import os
     import re
 
     safe = re.sub(r"[^A-Za-z0-9_.-]+", "_", reference)[:60].strip("._") or "controller"

@@ -44,17 +44,16 @@ import copy
 import os
 import resource
 import shutil
-import signal
 import socket
 import subprocess
 import sys
 import tempfile
-import time
 import traceback
 from pathlib import Path
 
 import numpy as np
 
+from acc_gym._process import become_subreaper, die_with_parent, kill_all, processes_of  # noqa: F401
 from acc_gym.leaderboard import protocol
 
 SANDBOXES = ("process", "bwrap")
@@ -63,7 +62,6 @@ OPEN_FILES = 256
 PROCESSES = 64  # RLIMIT_NPROC, applied with an own user id only (it counts per user)
 CPU_MARGIN = 60.0  # [s] RLIMIT_CPU = total budget + this
 UID_BASE = 1_900_000_000  # own user ids: UID_BASE + 100 * (runner pid % 1e6) + controller index
-PR_SET_CHILD_SUBREAPER = 36
 
 
 # -- the controller's side -------------------------------------------------------------------------
@@ -127,79 +125,6 @@ def main(argv=None) -> int:
 
 
 # -- the trusted side ------------------------------------------------------------------------------
-def become_subreaper() -> bool:
-    """Make this process a child subreaper (Linux): orphaned descendants come to it."""
-    try:
-        import ctypes
-
-        libc = ctypes.CDLL(None, use_errno=True)
-        return libc.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) == 0
-    except (OSError, AttributeError):  # pragma: no cover - not Linux
-        return False
-
-
-def descendants(root: int | None = None) -> list[int]:
-    """Every living descendant of ``root`` (this process by default), from ``/proc``."""
-    root = os.getpid() if root is None else root
-    children: dict[int, list[int]] = {}
-    for entry in os.listdir("/proc"):
-        if not entry.isdigit():
-            continue
-        try:
-            with open(f"/proc/{entry}/stat", "rb") as f:
-                stat = f.read()
-        except OSError:
-            continue
-        ppid = int(stat[stat.rindex(b")") + 2:].split()[1])
-        children.setdefault(ppid, []).append(int(entry))
-    out, todo = [], [root]
-    while todo:
-        for c in children.get(todo.pop(), []):
-            out.append(c)
-            todo.append(c)
-    return out
-
-
-def processes_of(uid: int) -> list[int]:
-    out = []
-    for entry in os.listdir("/proc"):
-        if not entry.isdigit():
-            continue
-        try:
-            st = os.stat(f"/proc/{entry}")
-        except OSError:
-            continue
-        if st.st_uid == uid:
-            out.append(int(entry))
-    return out
-
-
-def kill_all(uid: int | None, timeout: float = 5.0) -> None:
-    """SIGKILL every descendant of this process (and, with ``uid``, every process of that
-    user id), reap them, until none is left."""
-    end = time.monotonic() + timeout
-    while True:
-        pids = set(descendants())
-        if uid is not None:
-            pids |= set(processes_of(uid))
-        pids.discard(os.getpid())
-        if not pids or time.monotonic() > end:
-            return
-        for pid in pids:
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except (ProcessLookupError, PermissionError):
-                pass
-        while True:  # reap what we can (our children and the orphans reparented to us)
-            try:
-                pid, _ = os.waitpid(-1, os.WNOHANG)
-            except ChildProcessError:
-                break
-            if pid == 0:
-                break
-        time.sleep(0.01)
-
-
 def _readable_by_others(path: str) -> bool:
     """Whether ``path`` and every directory above it are open to other users."""
     p = Path(path).resolve()
@@ -214,7 +139,7 @@ def _readable_by_others(path: str) -> bool:
 def search_path() -> list[str]:
     """The runner's ``sys.path`` entries that exist, then its working directory (what the
     controller imports from: a module in the directory the leaderboard is run from works)."""
-    paths = [p for p in sys.path if p and os.path.exists(p)]
+    paths = [os.path.abspath(p) for p in sys.path if p and os.path.exists(p)]  # the sandbox has another cwd
     return paths + [os.getcwd()] if os.getcwd() not in paths else paths
 
 
@@ -255,7 +180,8 @@ class ControllerProcess:
             cmd = self._bwrap(cmd, theirs.fileno())
         cpu = int(budget + CPU_MARGIN)
 
-        def limits():  # in the child, before exec: the controller cannot undo them
+        def limits():  # in the child, before exec: the controller cannot raise them again
+            die_with_parent()  # if the simulation process is killed, so is the controller
             resource.setrlimit(resource.RLIMIT_AS, (ADDRESS_SPACE, ADDRESS_SPACE))
             resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu + 5))
             resource.setrlimit(resource.RLIMIT_NOFILE, (OPEN_FILES, OPEN_FILES))

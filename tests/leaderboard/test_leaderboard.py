@@ -191,3 +191,28 @@ def test_bad_arguments_are_named():
         run_leaderboard("ncap-v1", controllers=["acc", "acc"])
     with pytest.raises(SystemExit):
         main(["leaderboard", "--suite", "nope-v1", "--controllers", "acc"])
+
+
+def test_builtins_and_the_shipped_policy_score_as_under_evaluate():
+    """Through the trusted simulation and the sandboxed controller, every built-in and
+    ppo-acc score each episode exactly as run_episode does in one process."""
+    import gymnasium as gym
+
+    from acc_gym.evaluation.runner import run_episode
+    from acc_gym.leaderboard.run import default_controllers
+    from acc_gym.suites import get_suite
+
+    names = default_controllers()
+    assert "ppo-acc" in names and "acc" in names
+    suites = ["malicious-v1", "carfollowing-v1"]
+    r = run_leaderboard(suites, "test", names, episodes=2, workers=2)
+    for c in r["controllers"]:
+        assert c["status"] == "ok", (c["name"], c["reason"])
+        for e in c["episodes"]:
+            suite = get_suite(e["suite"])
+            sc = suite.episodes("test")[e["episode"]]
+            env = gym.make(suite.env_id)
+            info, _ = run_episode(env, c["name"], seed=sc.seed, scenario=sc, record=False)
+            env.close()
+            assert e["score"] == info["score"], (c["name"], e["suite"], e["episode"])
+            assert e["points"] == (0.0 if info["report"]["metrics"]["collision"] else info["score"])

@@ -1,0 +1,193 @@
+"""Adversarial controllers for the leaderboard tests, loaded as ``cheats:NAME``.
+
+Each tries one of the cheats that worked when controllers ran beside the simulator
+(issue 16) and reports what it managed on its standard output, which the leaderboard
+sends to the controller's own log file. They only *try*: where a write would succeed it
+writes nothing (an append of zero bytes), so a run without isolation damages nothing.
+A cheat's target (the output directory) comes from ``cheats_target.txt`` in the
+directory named by ``CHEATS_DIR`` beside this file, written by the test.
+"""
+
+import gc
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+FULL_THROTTLE = np.array([1.0], dtype=np.float32)
+
+
+def say(*words) -> None:
+    print("CHEAT", *words, flush=True)
+
+
+def target() -> Path:
+    return Path((Path(__file__).with_name("cheats_target.txt")).read_text().strip())
+
+
+class FullThrottle:
+    """No cheat: full throttle, which collides in every episode with a vehicle ahead."""
+
+    def predict(self, obs, deterministic=True):
+        return FULL_THROTTLE, None
+
+
+class PatchesScorer(FullThrottle):
+    """Full throttle, after replacing the scorer and the result pipe in its own process."""
+
+    def __init__(self):
+        import multiprocessing.connection
+
+        import acc_gym.envs.core as core
+        from acc_gym.evaluation import scoring
+
+        fake = scoring.score_episode
+
+        def perfect(*args, **kwargs):
+            report = fake(*args, **kwargs)
+            object.__setattr__(report, "score", 100.0)
+            return report
+
+        core.score_episode = perfect
+        scoring.score_episode = perfect
+        multiprocessing.connection.Connection.send = lambda self, obj: None
+        say("patched the scorer")
+
+
+class Introspects(FullThrottle):
+    """Looks through its frames and the garbage collector for the simulator or a scenario."""
+
+    def predict(self, obs, deterministic=True):
+        found = []
+        frame = sys._getframe()
+        while frame is not None:
+            found += [k for k, v in frame.f_locals.items() if type(v).__name__ in ("SingleLaneWorld", "Scenario",
+                                                                                    "ACCEnv", "EpisodeRun")]
+            frame = frame.f_back
+        found += [type(o).__name__ for o in gc.get_objects()
+                  if type(o).__name__ in ("SingleLaneWorld", "Scenario", "ACCEnv", "EpisodeRun")]
+        for o in gc.get_objects():  # move the ego to a safe gap where it can
+            if type(o).__name__ == "SingleLaneWorld":
+                o.x[0] = -1e6
+        say("found", len(found))
+        return FULL_THROTTLE, None
+
+
+class FreezesClock:
+    """Freezes its clocks and takes 1.5 s in every call after the first (budget: 1 s)."""
+
+    def __init__(self):
+        self.calls = 0
+        time.monotonic = lambda: 0.0
+        time.perf_counter = lambda: 0.0
+
+    def predict(self, obs, deterministic=True):
+        self.calls += 1
+        if self.calls >= 2:
+            time.sleep(1.5)
+        return np.zeros(1, dtype=np.float32), None
+
+
+class ForgesDone:
+    """After two steps, writes forged frames (a goodbye, then a short answer) to its socket."""
+
+    def __init__(self):
+        self.calls = 0
+
+    def predict(self, obs, deterministic=True):
+        self.calls += 1
+        if self.calls == 3:
+            import socket
+            import struct
+
+            fd = int(sys.argv[1])
+            s = socket.socket(fileno=os.dup(fd))
+            s.sendall(struct.pack("<4sII", b"ACCB", 0, 0) + struct.pack("<4sII", b"ACCA", 0, 0))
+            say("forged")
+        return np.zeros(1, dtype=np.float32), None
+
+
+def _others() -> list[int]:
+    me, out = os.getpid(), []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit() and int(entry) != me:
+            try:
+                cmd = Path(f"/proc/{entry}/cmdline").read_bytes()
+            except OSError:
+                continue
+            if b"acc_gym.leaderboard.sandbox" in cmd or b"multiprocessing" in cmd or b"pytest" in cmd:
+                out.append(int(entry))
+    return out
+
+
+class KillsOthers(FullThrottle):
+    """SIGKILLs every other controller, simulation and test process it can find."""
+
+    def __init__(self):
+        self.done = False
+
+    def predict(self, obs, deterministic=True):
+        if not self.done:
+            self.done = True
+            killed = refused = 0
+            for pid in _others() + [os.getppid()]:
+                try:
+                    os.kill(pid, signal.SIGKILL)
+                    killed += 1
+                except PermissionError:
+                    refused += 1
+                except ProcessLookupError:
+                    pass
+            say("killed", killed, "refused", refused)
+        return FULL_THROTTLE, None
+
+
+class Lingers(FullThrottle):
+    """Double-forks a detached grandchild that outlives the run and rewrites results.json."""
+
+    def __init__(self):
+        out = target()
+        if os.fork() == 0:
+            os.setsid()
+            if os.fork() == 0:
+                say("grandchild", os.getpid())
+                for _ in range(200):  # for up to 20 s, keep trying to rewrite the results
+                    time.sleep(0.1)
+                    try:
+                        (out / "results.json").write_text('{"forged": true}')
+                        say("rewrote results")
+                    except OSError:
+                        pass
+                os._exit(0)
+            os._exit(0)
+        os.wait()
+
+
+class EditsFiles(FullThrottle):
+    """Tries to open the installed package source, the suite data and the output for writing."""
+
+    def __init__(self):
+        import acc_gym
+        import acc_gym.envs.core as core
+
+        paths = [Path(core.__file__), Path(acc_gym.__file__).parent / "suites" / "data" / "ncap-v1.json"]
+        for p in paths:
+            try:
+                with open(p, "ab"):  # a zero-byte append: proves the right without changing a byte
+                    pass
+                say("writable", p)
+            except OSError:
+                say("refused", p)
+
+
+class Floods(FullThrottle):
+    """Prints 3 MB of junk and a fake ranking line on its standard output and error."""
+
+    def __init__(self):
+        sys.stdout.write("1  cheats:Floods  ok  100.0  100.0  100%\n")
+        sys.stdout.write("x" * (3 << 20) + "\n")
+        sys.stderr.write("y" * 1000 + "\n")
+        sys.stdout.flush()

@@ -1,0 +1,143 @@
+"""Issue 16's cheats, each as a small controller (cheats.py), gain nothing on the leaderboard.
+
+One leaderboard run holds the honest linear ACC and every cheat; a second run holds the
+ACC alone. The cheats rank below the ACC or fail, the ACC's episodes are the same bits
+with or without them, results.json is what the run returned, and nothing the run
+started is alive when it returns. The cheats that need the controller's own user id to
+be stopped (signals, writing files) are checked only where the runner can give it one
+(root, and the interpreter readable by other users: CI makes it so).
+"""
+
+import os
+import stat
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+
+from acc_gym.leaderboard import load_results, run_leaderboard
+from acc_gym.leaderboard.sandbox import UID_BASE, own_uid_possible, processes_of
+
+HERE = Path(__file__).resolve().parent
+SUITES = ["ncap-v1", "carfollowing-v1"]
+CHEATS = ["cheats:FullThrottle", "cheats:PatchesScorer", "cheats:Introspects", "cheats:FreezesClock",
+          "cheats:ForgesDone", "cheats:KillsOthers", "cheats:Lingers", "cheats:EditsFiles", "cheats:Floods"]
+UID_ISOLATED, WHY_NOT = own_uid_possible()
+needs_uid = pytest.mark.skipif(not UID_ISOLATED, reason=f"the controller cannot get its own user id here ({WHY_NOT}); "
+                                                        f"without it a controller can signal and write as the runner")
+
+
+def episodes(results, name):
+    c = next(c for c in results["controllers"] if c["name"] == name)
+    return [(e["suite"], e["episode"], e["scenario"], e["score"], e["points"], e["metrics"]) for e in c["episodes"]]
+
+
+def log_text(out: Path, results, name) -> str:
+    c = next(c for c in results["controllers"] if c["name"] == name)
+    return (out / c["log"]).read_text(errors="replace")
+
+
+@pytest.fixture(scope="module")
+def runs():
+    with pytest.MonkeyPatch.context() as mp:
+        mp.syspath_prepend(str(HERE))
+        base = Path(tempfile.mkdtemp(prefix="acc-gym-cheats-"))
+        os.chmod(base, 0o755)  # the lingering grandchild may look for it; it must still not write there
+        out = base / "board"
+        target = HERE / "cheats_target.txt"
+        target.write_text(str(out))
+        import acc_gym
+        import acc_gym.envs.core
+
+        watched = [Path(acc_gym.envs.core.__file__), Path(acc_gym.__file__).parent / "suites" / "data" / "ncap-v1.json"]
+        before = {p: p.read_bytes() for p in watched}
+        t0 = time.monotonic()
+        mixed = run_leaderboard(SUITES, "test", ["acc", *CHEATS], episodes=3, workers=2, step_budget=1.0,
+                                budget=120, out=out)
+        wall = time.monotonic() - t0
+        alone = run_leaderboard(SUITES, "test", ["acc"], episodes=3, workers=1)
+        yield {"mixed": mixed, "alone": alone, "out": out, "before": before, "wall": wall}
+        target.unlink()
+
+
+def test_every_cheat_ranks_below_the_honest_acc_or_fails(runs):
+    r = runs["mixed"]
+    by = {c["name"]: c for c in r["controllers"]}
+    acc = by["acc"]
+    assert acc["status"] == "ok" and acc["rank"] == 1
+    for name in CHEATS:
+        c = by[name]
+        if c["status"] == "ok":
+            assert c["summary"]["overall"]["mean_points"] < acc["summary"]["overall"]["mean_points"] - 10, name
+            assert c["rank"] > acc["rank"], name
+    # the ones that collide get no points for those episodes, whatever they did to their own scorer
+    for name in ("cheats:FullThrottle", "cheats:PatchesScorer", "cheats:Introspects"):
+        eps = by[name]["episodes"]
+        assert len(eps) == 6 and all(e["score"] < 100.0 for e in eps)
+        assert all(e["points"] == 0.0 for e in eps if e["metrics"]["collision"])
+        assert sum(e["metrics"]["collision"] for e in eps) >= 3
+
+
+def test_the_honest_controller_is_untouched_by_the_cheaters(runs):
+    assert episodes(runs["mixed"], "acc") == episodes(runs["alone"], "acc")
+
+
+def test_the_controller_sees_no_simulator_and_its_clocks_are_its_own(runs):
+    r, out = runs["mixed"], runs["out"]
+    assert "CHEAT found 0" in log_text(out, r, "cheats:Introspects")
+    by = {c["name"]: c for c in r["controllers"]}
+    assert by["cheats:FreezesClock"]["status"] == "failed"
+    assert "step budget of 1 s" in by["cheats:FreezesClock"]["reason"]
+    assert by["cheats:ForgesDone"]["status"] == "failed" and "protocol" in by["cheats:ForgesDone"]["reason"]
+    assert len(by["cheats:ForgesDone"]["episodes"]) < 6  # what it finished is kept, not ranked
+
+
+def test_results_json_is_what_the_run_returned_and_stays_so(runs):
+    r, out = runs["mixed"], runs["out"]
+    time.sleep(1.0)  # a lingering grandchild would have rewritten it by now
+    stored = load_results(out / "results.json")
+    expected = {k: v for k, v in r.items() if k != "files"}
+    assert stored == expected
+    assert "rewrote results" not in log_text(out, r, "cheats:Lingers")
+
+
+def test_nothing_the_run_started_is_alive(runs):
+    r, out = runs["mixed"], runs["out"]
+    text = log_text(out, r, "cheats:Lingers")
+    pids = [int(line.split()[-1]) for line in text.splitlines() if line.startswith("CHEAT grandchild")]
+    assert pids, text[:500]
+    for pid in pids:
+        assert not Path(f"/proc/{pid}").exists() or Path(f"/proc/{pid}/stat").read_text().split()[2] == "Z"
+    if UID_ISOLATED:
+        uids = [UID_BASE + 100 * (os.getpid() % 1_000_000) + k for k in range(len(CHEATS) + 1)]
+        assert not any(processes_of(u) for u in uids)
+
+
+def test_children_output_goes_to_their_logs_not_the_runners(runs, capfd):
+    r, out = runs["mixed"], runs["out"]
+    text = log_text(out, r, "cheats:Floods")
+    assert "1  cheats:Floods  ok  100.0" in text and len(text) > 3 << 20
+    captured = capfd.readouterr()
+    assert "cheats:Floods  ok  100.0" not in captured.out and "xxxxxxxx" not in captured.out
+
+
+@needs_uid
+def test_a_controller_cannot_signal_its_siblings_or_the_runner(runs):
+    r, out = runs["mixed"], runs["out"]
+    text = log_text(out, r, "cheats:KillsOthers")
+    assert "CHEAT killed 0 refused" in text
+    by = {c["name"]: c for c in r["controllers"]}
+    assert all(by[n]["status"] == "ok" for n in ("acc", "cheats:FullThrottle", "cheats:Floods"))
+
+
+@needs_uid
+def test_a_controller_cannot_write_the_package_the_suites_or_the_output(runs):
+    r, out = runs["mixed"], runs["out"]
+    text = log_text(out, r, "cheats:EditsFiles")
+    assert text.count("CHEAT refused") == 2 and "CHEAT writable" not in text
+    for path, content in runs["before"].items():
+        assert path.read_bytes() == content
+    assert r["manifest"]["sandbox"] == {"kind": "process", "uid_isolated": True, "why_not": None}
+    mode = (out / "results.json").stat().st_mode
+    assert not mode & stat.S_IWOTH
