@@ -9,6 +9,7 @@ be stopped (signals, writing files) are checked only where the runner can give i
 """
 
 import os
+import shutil
 import stat
 import tempfile
 import time
@@ -21,9 +22,11 @@ from acc_gym.leaderboard.sandbox import UID_BASE, own_uid_possible, processes_of
 
 HERE = Path(__file__).resolve().parent
 SUITES = ["ncap-v1", "carfollowing-v1"]
-CHEATS = ["cheats:FullThrottle", "cheats:PatchesScorer", "cheats:Introspects", "cheats:FreezesClock",
-          "cheats:ForgesDone", "cheats:KillsOthers", "cheats:Lingers", "cheats:EditsFiles", "cheats:Floods"]
 UID_ISOLATED, WHY_NOT = own_uid_possible()
+# KillsOthers SIGKILLs every process it can see (the test runner too): only where it cannot
+CHEATS = ["cheats:FullThrottle", "cheats:PatchesScorer", "cheats:Introspects", "cheats:FreezesClock",
+          "cheats:ForgesDone", "cheats:Lingers", "cheats:EditsFiles", "cheats:Floods"] + \
+         (["cheats:KillsOthers"] if UID_ISOLATED else [])
 needs_uid = pytest.mark.skipif(not UID_ISOLATED, reason=f"the controller cannot get its own user id here ({WHY_NOT}); "
                                                         f"without it a controller can signal and write as the runner")
 
@@ -141,3 +144,21 @@ def test_a_controller_cannot_write_the_package_the_suites_or_the_output(runs):
     assert r["manifest"]["sandbox"] == {"kind": "process", "uid_isolated": True, "why_not": None}
     mode = (out / "results.json").stat().st_mode
     assert not mode & stat.S_IWOTH
+
+
+@pytest.mark.skipif(shutil.which("bwrap") is None, reason="bubblewrap (bwrap) is not installed: apt-get install "
+                                                           "bubblewrap to test --sandbox bwrap")
+def test_bwrap_sandbox_contains_the_cheats_too(runs):
+    with pytest.MonkeyPatch.context() as mp:
+        mp.syspath_prepend(str(HERE))
+        out = Path(tempfile.mkdtemp(prefix="acc-gym-bwrap-")) / "board"
+        r = run_leaderboard(SUITES, "test", ["acc", "cheats:KillsOthers", "cheats:EditsFiles", "cheats:Introspects"],
+                            episodes=3, workers=2, budget=120, out=out, sandbox="bwrap")
+    assert r["manifest"]["sandbox"]["kind"] == "bwrap"
+    assert episodes(r, "acc") == episodes(runs["alone"], "acc")
+    text = log_text(out, r, "cheats:EditsFiles")
+    assert text.count("CHEAT refused") == 2 and "CHEAT writable" not in text  # a read-only root, even as root
+    assert "CHEAT found 0" in log_text(out, r, "cheats:Introspects")
+    assert all(c["status"] == "ok" for c in r["controllers"])
+    for path, content in runs["before"].items():
+        assert path.read_bytes() == content
