@@ -56,6 +56,8 @@ import time
 
 import numpy as np
 
+from acc_gym.controllers import cli_plugins, registered_controllers
+
 
 def _segments(mode: np.ndarray, t: np.ndarray) -> list[tuple[str, float, float]]:
     from acc_gym.drivers.mpc import Mode
@@ -209,45 +211,23 @@ def _main(argv=None) -> int:
     p_eval.add_argument("--seed", type=int, default=0)
     p_eval.add_argument("--drivers", default=None, help="surrounding drivers (typical, atypical, malicious, idm, ...)")
     p_eval.add_argument("--json", action="store_true", help="print one JSON object")
-    p_tr = sub.add_parser("train", help="train an ACC policy with stable-baselines3 (needs the rl extra)")
-    p_tr.add_argument("algo", choices=["ppo", "sac", "td3"])
-    p_tr.add_argument("--env", default="acc_gym/CarFollowing-v0")
-    p_tr.add_argument("--timesteps", type=int, default=100_000)
-    p_tr.add_argument("--seed", type=int, default=0)
-    p_tr.add_argument("--out", required=True, help="run directory (model, checkpoints, evaluations, manifest)")
-    p_tr.add_argument("--num-envs", type=int, default=8)
-    p_tr.add_argument("--eval-freq", type=int, default=None, help="timesteps between evaluations (default T/5)")
-    p_tr.add_argument("--eval-episodes", type=int, default=5)
-    p_tr.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p_tr.add_argument("--residual", default=None, choices=["acc", "constant"],
-                      help="learn a residual on this base controller: clip(base + scale * policy, -1, 1)")
-    p_tr.add_argument("--residual-scale", type=float, default=0.3, help="scale of the residual action")
-    p_tr.add_argument("--residual-kwargs", default=None,
-                      help='JSON settings of the base controller, e.g. \'{"k1": 0.8, "s0": 0.5}\'')
-    p_tr.add_argument("--max-overspeed", type=float, default=None,
-                      help="with --residual: cap the speed at the set speed plus this [m/s]")
-    p_tr.add_argument("--shield", nargs="?", const="proper-response", default=None,
-                      choices=("proper-response", "base"),
-                      help="with --residual: brake >= 2.5 m/s^2 whenever the observed Q = gap - Gapsafe < 0 "
-                           "('base': and at least as hard as the base controller)")
-    p_tr.add_argument("--score-bonus", type=float, default=0.0,
-                      help="add BONUS * score / 100 to each episode's last reward")
-    p_tr.add_argument("--scenarios", nargs="+", default=None, help="scenario ids or families to train on")
-    p_tr.add_argument("--weights", nargs="+", type=float, default=None, help="their sampling weights")
-    p_tr.add_argument("--mix", nargs="+", default=None, metavar="NAME=SHARE",
-                      help="train on families (or ids) with these shares, e.g. singlelane=0.75 carfollowing=0.25")
-    p_tr.add_argument("--train-scoring", default=None,
-                      help='JSON scoring settings for the training environments only (reward, termination, score '
-                           'bonus), e.g. \'{"lead_margin": 1.0}\'; evaluations use the default scoring')
-    p_tr.add_argument("--algo-kwargs", default=None,
-                      help='JSON keyword arguments of the algorithm, e.g. \'{"policy_kwargs": {"log_std_init": -2}}\'')
     p_dd = sub.add_parser("driver-demo", help="simulate an MPC human-like driver and print what it did")
     p_dd.add_argument("--driver", default="#57", help="paper 001 Table 4 preset: #23, #57, #61 or #13")
     p_dd.add_argument("--speed", type=float, default=25.0, help="the lead's cruise speed [m/s]")
     p_dd.add_argument("--json", action="store_true", help="print one JSON object")
+    sub.add_parser("controllers", help="list the controllers registered by name, and where each comes from")
     _add_campaign_parser(sub)
     _add_leaderboard_parser(sub)
+    plugins = cli_plugins()  # e.g. acc-gym train, from the acc_gym.cli entry points
+    for plugin in plugins.values():
+        plugin.add_parser(sub)
     args = parser.parse_args(argv)
+    if args.command in plugins:
+        return plugins[args.command].run(args, parser)
+    if args.command == "controllers":
+        for name, origin in registered_controllers().items():
+            print(f"{name:12s} {origin}")
+        return 0
     if args.command == "campaign":
         return _campaign(args, parser)
     if args.command == "leaderboard":
@@ -282,34 +262,6 @@ def _main(argv=None) -> int:
             _print_report(out["report"])
             if out["plot"]:
                 print(f"plot: {out['plot']}")
-    elif args.command == "train":
-        try:
-            from agents.rl.train import train
-        except ImportError as exc:
-            parser.error(f"training needs stable-baselines3 and torch: pip install 'acc-gym[rl]' ({exc})")
-        try:
-            env_settings = {k: tuple(v) for k, v in (("scenarios", args.scenarios), ("weights", args.weights))
-                            if v is not None}
-            algo_kwargs = json.loads(args.algo_kwargs) if args.algo_kwargs else None
-            mix = None
-            if args.mix:
-                if not all("=" in m for m in args.mix):
-                    raise ValueError(f"--mix takes NAME=SHARE items, got {args.mix}")
-                mix = {m.split("=", 1)[0]: float(m.split("=", 1)[1]) for m in args.mix}
-            run = train(args.algo, args.env, args.timesteps, args.seed, args.out, args.num_envs, args.eval_freq,
-                        args.eval_episodes, progress=not args.no_progress, algo_kwargs=algo_kwargs,
-                        residual=args.residual, residual_scale=args.residual_scale, shield=args.shield,
-                        residual_kwargs=json.loads(args.residual_kwargs) if args.residual_kwargs else None,
-                        max_overspeed=args.max_overspeed,
-                        score_bonus=args.score_bonus,
-                        train_scoring=json.loads(args.train_scoring) if args.train_scoring else None,
-                        mix=mix, **env_settings)
-        except (ValueError, TypeError) as exc:
-            parser.error(str(exc))
-        final = json.loads((run / "manifest.json").read_text())["final_evaluation"]
-        print(f"{args.algo} on {args.env}: {final['timesteps']} timesteps; held-out evaluation: mean score "
-              f"{final['mean_score']:.1f}, qualified {final['share_qualified']:.0%}, collisions {final['collisions']}")
-        print(f"run directory: {run}  (score it: acc-gym evaluate {run} --env {args.env})")
     elif args.command == "evaluate":
         from acc_gym.evaluation.runner import evaluate
 
@@ -413,7 +365,12 @@ def _add_leaderboard_parser(sub) -> None:
     p.add_argument("--suite", action="append", default=None,
                    help="a suite (carfollowing-v1, malicious-v1, ncap-v1, singlelane-v1); repeat or "
                         "comma-separate for several (default: all four)")
-    p.add_argument("--split", default="test", help="dev or test (default test)")
+    p.add_argument("--split", default="test",
+                   help="dev, test or private (default test): develop on dev, publish on test, rank officially "
+                        "on private")
+    p.add_argument("--secret", default=None, metavar="FILE",
+                   help="the host's secret for --split private (default: the environment variable "
+                        "ACC_GYM_LEADERBOARD_SECRET); only its commitment is recorded")
     p.add_argument("--controllers", nargs="+", default=None,
                    help="built-in names, module:attribute or saved model paths (default: every built-in "
                         "and the shipped policy ppo-acc)")
@@ -457,10 +414,16 @@ def _leaderboard(args, parser) -> int:
             print(text_table(results), flush=True)
 
     try:
+        secret = None
+        if args.secret is not None:
+            from acc_gym.suites.private import read_secret
+
+            secret = read_secret(args.secret)
         results = run_leaderboard(suites, args.split, args.controllers, out=args.out, workers=args.workers,
                                   step_budget=args.step_budget, budget=args.budget, episodes=args.episodes,
-                                  report=not args.no_report, progress=progress, sandbox=args.sandbox, show=show)
-    except OutputError as exc:
+                                  report=not args.no_report, progress=progress, sandbox=args.sandbox, show=show,
+                                  secret=secret)
+    except (OutputError, RuntimeError) as exc:  # a failed write, or a sandbox this machine cannot give
         print(f"acc-gym leaderboard: error: {exc}", file=sys.stderr)
         return 1
     except (ValueError, TypeError) as exc:

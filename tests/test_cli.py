@@ -86,7 +86,7 @@ def test_evaluate_prints_the_summary_and_rejects_bad_controllers(capsys, tmp_pat
     assert s["mean_score"] == sum(s["scores"]) / 4
     # a module:attribute controller, scored through the same path
     (tmp_path / "my_ctrl.py").write_text(
-        "from agents.controllers import ConstantSpeed\nblind = ConstantSpeed()\nclass Bad:\n    pass\n"
+        "from acc_gym_agents.controllers import ConstantSpeed\nblind = ConstantSpeed()\nclass Bad:\n    pass\n"
         "class Wide:\n    def predict(self, obs, deterministic=True):\n        return [0.0, 0.0], None\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     assert main(["evaluate", "my_ctrl:blind", "--env", "acc_gym/NCAP-v0", "--episodes", "2", "--json"]) == 0

@@ -1,46 +1,46 @@
 """Score a controller over episodes of an environment (what ``acc-gym evaluate`` runs).
 
 A controller is any object with ``predict(obs, deterministic=True)`` returning the action
-(or ``(action, state)``, as stable-baselines3 models do): a built-in name of
-:data:`agents.controllers.BUILTINS`, a shipped trained policy (:data:`agents.policies.SHIPPED`),
-``"module:attribute"`` naming such an object, a
-class or a factory that makes one, or a saved model (a run directory of ``acc-gym
-train`` or its ``model.zip``).
+(or ``(action, state)``, as stable-baselines3 models do): a registered name
+(:mod:`acc_gym.controllers`: the built-ins ``acc``, ``idm``, ..., the shipped policy
+``ppo-acc``, any installed package's entry points), ``"module:attribute"`` naming such an
+object, a class or a factory that makes one, or a saved model (a run directory of
+``acc-gym train`` or its ``model.zip``, opened by an installed loader).
 """
 
 from __future__ import annotations
 
 import importlib
 import math
+from pathlib import Path
 
 import numpy as np
 
 
 def load_controller(ref):
-    """A controller from a built-in name, ``"module:attribute"``, or an object with ``predict``."""
+    """A controller from a registered name, ``"module:attribute"``, a saved model's path, or
+    an object with ``predict`` (returned as it is)."""
+    from acc_gym import controllers
+
     if hasattr(ref, "predict"):
         return ref
     if not isinstance(ref, str):
         raise TypeError(f"a controller reference must be a name, 'module:attribute' or an object with predict(), "
                         f"got {type(ref).__name__}")
-    from agents.controllers import BUILTINS
-    from agents.policies import SHIPPED, load_shipped
-
-    if ref in BUILTINS:
-        return BUILTINS[ref]()
-    if ref in SHIPPED:
-        return load_shipped(ref)
-    from pathlib import Path
-
-    if ref.endswith(".zip") or Path(ref).is_dir():  # a saved stable-baselines3 model (acc-gym train)
+    made = controllers.make_controller(ref)
+    if made is not None:
+        return made
+    if ref.endswith(".zip") or Path(ref).is_dir():  # a saved model (acc-gym train)
         if not Path(ref).exists():
             raise ValueError(f"controller {ref!r}: no such file or directory")
-        from agents.rl.policy import load_policy
-
-        return load_policy(ref)
+        saved = controllers.load_saved(ref)
+        if saved is None:
+            raise ValueError(f"controller {ref!r}: not a run directory written by `acc-gym train` (no manifest.json) "
+                             f"and no installed loader ({controllers.LOADER_GROUP}) opens it")
+        return saved
     if ":" not in ref:
-        raise ValueError(f"unknown controller {ref!r}: use a built-in name {sorted(BUILTINS)}, a shipped "
-                         f"policy {sorted(SHIPPED)} or 'module:attribute'")
+        raise ValueError(f"unknown controller {ref!r}: use a registered name {sorted(controllers.registered_controllers())}"
+                         f" (acc-gym controllers lists them), 'module:attribute' or a saved model's path")
     module_name, attr = ref.split(":", 1)
     try:
         module = importlib.import_module(module_name)

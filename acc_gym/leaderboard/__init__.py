@@ -12,11 +12,11 @@
   :func:`load_results`;
 * :mod:`~acc_gym.leaderboard.report` -- the self-contained HTML report.
 
-Controllers are given by reference (a built-in name of
-:data:`agents.controllers.BUILTINS`, ``"module:attribute"`` or a saved model path) and
-loaded in their own process; the module must be importable there -- the child gets the
-parent's ``sys.path`` and working directory (see :mod:`~acc_gym.leaderboard.isolation`),
-so put your module on ``PYTHONPATH`` or run from its directory.
+Controllers are given by reference (a registered name of :mod:`acc_gym.controllers`,
+``"module:attribute"`` or a saved model path) and loaded in their own sandboxed process;
+the module must be importable there -- it gets the runner's ``sys.path`` and working
+directory (see :mod:`~acc_gym.leaderboard.sandbox`), so put your module on
+``PYTHONPATH`` or run from its directory.
 """
 
 from acc_gym.leaderboard.results import load_results, write_files

@@ -28,7 +28,15 @@ Files (all written atomically: a temporary file in the same directory, then
 * ``results.json`` -- ``{"format", "sha256", "results"}`` where ``sha256`` is the hash of
   the canonical JSON of ``results``; :func:`load_results` recomputes it, so a truncated,
   damaged or hand-edited file is refused with a ``ValueError`` naming it (and JSON
-  errors are re-raised as ``ValueError`` naming the file), never read as empty;
+  errors are re-raised as ``ValueError`` naming the file), never read as empty. A
+  checksum only catches damage: whoever rewrites the file can recompute it. So when the
+  host sets a key (:data:`KEY_ENV`, the key itself, or :data:`KEY_FILE_ENV`, a file
+  holding it), the file also carries ``"hmac": {"alg": "hmac-sha256", "key_id", "value"}``
+  over the same canonical JSON, and :func:`load_results` -- with the key set -- refuses a
+  file whose HMAC is missing or wrong. The key never reaches a controller (their
+  environment is scrubbed); keep its file readable by the host only, and note that a
+  controller running under the host's own user id (no per-controller uid: see
+  :mod:`acc_gym.leaderboard.sandbox`) could read it from the runner's memory or files;
 * ``results.csv`` -- the ranking table, one row per controller;
 * ``leaderboard.md`` -- the same as a Markdown table;
 * ``report.html`` -- see :mod:`acc_gym.leaderboard.report`.
@@ -38,8 +46,10 @@ from __future__ import annotations
 
 import csv
 import hashlib
+import hmac
 import io
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -221,13 +231,53 @@ def csv_text(results: dict) -> str:
 
 
 # -- results.json -----------------------------------------------------------------------------
-def results_text(results: dict) -> str:
+KEY_ENV = "ACC_GYM_RESULTS_KEY"
+KEY_FILE_ENV = "ACC_GYM_RESULTS_KEY_FILE"
+_NO_KEY = object()
+
+
+def results_key() -> bytes | None:
+    """The host's key for signing results (``None`` if neither variable is set)."""
+    value, path = os.environ.get(KEY_ENV), os.environ.get(KEY_FILE_ENV)
+    if value is not None and path is not None:
+        raise ValueError(f"set one of {KEY_ENV} and {KEY_FILE_ENV}, not both")
+    if path is not None:
+        try:
+            value = Path(path).read_bytes()
+        except OSError as exc:
+            raise ValueError(f"cannot read the results key file {path!r} (${KEY_FILE_ENV}): "
+                             f"{exc.strerror or exc}") from None
+    if value is None:
+        return None
+    key = value.encode("utf-8") if isinstance(value, str) else value
+    key = key.strip()
+    if len(key) < 16:
+        raise ValueError(f"the results key (${KEY_FILE_ENV if path else KEY_ENV}) is {len(key)} bytes long; "
+                         f"use at least 16")
+    return key
+
+
+def signature(results: dict, key: bytes) -> dict:
+    body = canonical_json(results).encode("ascii")
+    return {"alg": "hmac-sha256", "key_id": hashlib.sha256(b"acc_gym.results.key\0" + key).hexdigest()[:16],
+            "value": hmac.new(key, body, hashlib.sha256).hexdigest()}
+
+
+def results_text(results: dict, key=_NO_KEY) -> str:
+    """The text of results.json: checksummed, and signed when a key is given (default: the
+    host's key from the environment, :func:`results_key`)."""
+    key = results_key() if key is _NO_KEY else key
     doc = {"format": FORMAT, "sha256": checksum(results), "results": results}
+    if key is not None:
+        doc["hmac"] = signature(results, key)
     return json.dumps(doc, indent=1, allow_nan=False) + "\n"
 
 
-def load_results(path) -> dict:
-    """The results of a ``results.json``, its checksum verified (``ValueError`` naming the file if not)."""
+def load_results(path, key=_NO_KEY) -> dict:
+    """The results of a ``results.json``, its checksum verified, and its HMAC too when a key
+    is set (``key``, default the host's from the environment): ``ValueError`` naming the
+    file if either fails or a key is set and the file is unsigned."""
+    key = results_key() if key is _NO_KEY else key
     path = Path(path)
     if path.is_dir():
         path = path / "results.json"
@@ -240,9 +290,9 @@ def load_results(path) -> dict:
     except json.JSONDecodeError as exc:
         raise ValueError(f"leaderboard results {str(path)!r} are truncated or corrupted (invalid JSON: {exc})") \
             from None
-    if not isinstance(doc, dict) or set(doc) != {"format", "sha256", "results"}:
+    if not isinstance(doc, dict) or set(doc) - {"hmac"} != {"format", "sha256", "results"}:
         raise ValueError(f"leaderboard results {str(path)!r} are not an {FORMAT} file "
-                         f"(expected the keys format, sha256, results)")
+                         f"(expected the keys format, sha256, results and an optional hmac)")
     if doc["format"] != FORMAT:
         raise ValueError(f"leaderboard results {str(path)!r} have format {doc['format']!r}; this version reads "
                          f"{FORMAT!r}")
@@ -253,14 +303,26 @@ def load_results(path) -> dict:
     if actual != doc["sha256"]:
         raise ValueError(f"leaderboard results {str(path)!r} are corrupted: their checksum does not match "
                          f"(stored {str(doc['sha256'])[:12]}..., computed {actual[:12]}...)")
+    if key is not None:
+        if "hmac" not in doc:
+            raise ValueError(f"leaderboard results {str(path)!r} are not signed, and a results key is set: they "
+                             f"were not written by this host's runner")
+        expected = signature(doc["results"], key)
+        stored = doc["hmac"]
+        if not isinstance(stored, dict) or not hmac.compare_digest(str(stored.get("value")), expected["value"]):
+            raise ValueError(f"leaderboard results {str(path)!r} fail verification: their HMAC does not match the "
+                             f"results key (rewritten after the run, or signed with another key: key id "
+                             f"{stored.get('key_id') if isinstance(stored, dict) else None}, this key's "
+                             f"{expected['key_id']})")
     return doc["results"]
 
 
-def write_files(results: dict, out, html: str | None = None) -> dict[str, Path]:
-    """Write results.json, results.csv, leaderboard.md (and report.html) into ``out``, each atomically."""
+def write_files(results: dict, out, html: str | None = None, key=_NO_KEY) -> dict[str, Path]:
+    """Write results.json (signed with ``key``, default the host's), results.csv,
+    leaderboard.md (and report.html) into ``out``, each atomically."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    paths = {"results.json": atomic_write(out / "results.json", results_text(results)),
+    paths = {"results.json": atomic_write(out / "results.json", results_text(results, key)),
              "results.csv": atomic_write(out / "results.csv", csv_text(results)),
              "leaderboard.md": atomic_write(out / "leaderboard.md", markdown(results))}
     if html is not None:

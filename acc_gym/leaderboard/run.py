@@ -10,8 +10,8 @@ Defaults, and why:
   each suite at its first ``N`` episodes for quick runs (the manifest records the cap,
   and the table says how many ran).
 * **split**: ``test`` (tune on ``dev``).
-* **controllers**: every built-in of :data:`agents.controllers.BUILTINS` and every shipped
-  trained policy of :data:`agents.policies.SHIPPED`.
+* **controllers**: every registered name (:mod:`acc_gym.controllers`): the built-ins, the
+  shipped trained policy and any installed package's controllers.
 * **workers**: 2 controllers at a time; **step budget** 1 s per ``predict`` call (a
   hand-written law takes microseconds, a small policy network about a millisecond);
   **total budget** 600 s per controller.
@@ -41,6 +41,8 @@ from acc_gym.leaderboard.results import (
     RANKING_RULE,
     json_safe,
     rank,
+    results_key,
+    signature,
     summarise_controller,
     write_files,
 )
@@ -53,10 +55,9 @@ VERSIONED = ("acc-gym", "numpy", "gymnasium", "scipy", "numba", "matplotlib", "p
 
 
 def default_controllers() -> list[str]:
-    from agents.controllers import BUILTINS
-    from agents.policies import SHIPPED
+    from acc_gym.controllers import registered_controllers
 
-    return list(BUILTINS) + list(SHIPPED)
+    return list(registered_controllers())
 
 
 def versions() -> dict:
@@ -144,22 +145,24 @@ def publish(staging: Path, out: Path) -> None:
 
 def sandbox_settings(refs: list[str], sandbox: str) -> tuple[dict, dict]:
     """Per-controller user ids and what the manifest says about the sandbox."""
-    from acc_gym.leaderboard.sandbox import SANDBOXES, UID_BASE, bwrap_available, own_uid_possible
+    from acc_gym.leaderboard.sandbox import SANDBOXES, UID_BASE, bwrap_problem, own_uid_possible
 
     if sandbox not in SANDBOXES:
         raise ValueError(f"unknown sandbox {sandbox!r}; use one of {list(SANDBOXES)}")
-    if sandbox == "bwrap" and bwrap_available() is None:
-        raise ValueError("sandbox 'bwrap' needs the bubblewrap program (apt-get install bubblewrap)")
     possible, why = own_uid_possible([r for r in refs if os.path.exists(r)])
     base = UID_BASE + 100 * (os.getpid() % 1_000_000)
     uids = {ref: base + k for k, ref in enumerate(refs)} if possible else {}
+    if sandbox == "bwrap":  # refuse before anything runs, rather than rank every controller as crashed
+        problem = bwrap_problem(base + 99 if possible else None)
+        if problem is not None:
+            raise RuntimeError(f"sandbox 'bwrap' is not usable: {problem}")
     return uids, {"kind": sandbox, "uid_isolated": possible, "why_not": why or None}
 
 
 def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=None, workers: int = DEFAULT_WORKERS,
                     step_budget: float = DEFAULT_STEP_BUDGET, budget: float = DEFAULT_BUDGET,
                     episodes: int | None = None, report: bool = True, progress=None, sandbox: str = "process",
-                    show=None) -> dict:
+                    show=None, secret=None) -> dict:
     """Score ``controllers`` on ``suites`` (names; default all) and rank them; returns the results dict.
 
     ``out``: a directory to write results.json, results.csv, leaderboard.md, (with
@@ -169,9 +172,14 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     ``show(results)`` is called with the ranking before anything is written (the CLI
     prints it there). ``progress(outcome)`` is called as each controller ends.
     ``sandbox``: ``"process"`` or ``"bwrap"`` (:mod:`acc_gym.leaderboard.sandbox`).
+    ``split``: ``"dev"``, ``"test"`` or ``"private"``; the private split's episodes come from
+    ``secret`` (bytes or text; default: the ``ACC_GYM_LEADERBOARD_SECRET`` environment
+    variable) and the manifest records only its commitment (:mod:`acc_gym.suites.private`).
     """
+    from acc_gym.leaderboard.provenance import code_digest
     from acc_gym.suites import SPLITS, get_suite, list_suites
-    from acc_gym.suites.suite import content_digest
+    from acc_gym.suites import private as private_split
+    from acc_gym.suites.suite import content_digest, entry, sha256_of
 
     names = list_suites() if suites is None else ([suites] if isinstance(suites, str) else list(suites))
     if not names:
@@ -179,8 +187,12 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     if len(set(names)) != len(names):
         raise ValueError(f"suites {names} name a suite more than once")
     suite_objs = [get_suite(n) for n in names]  # ValueError naming an unknown one
-    if split not in SPLITS:
-        raise ValueError(f"unknown split {split!r}; use one of {list(SPLITS)}")
+    if split not in (*SPLITS, private_split.PRIVATE):
+        raise ValueError(f"unknown split {split!r}; use one of {[*SPLITS, private_split.PRIVATE]}")
+    if split == private_split.PRIVATE:
+        secret = private_split.read_secret() if secret is None else private_split.check_secret(secret)
+    elif secret is not None:
+        raise ValueError(f"a secret is for the private split only (split {split!r} is public)")
     refs = check_controllers(controllers)
     workers = _positive("workers", workers, integer=True)
     step_budget = _positive("step_budget", step_budget)
@@ -188,21 +200,29 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     if episodes is not None:
         episodes = _positive("episodes", episodes, integer=True)
     traces = out is not None and report
+    key = results_key()  # read (and checked) before anything runs; controllers never see it
     uids, sandbox_info = sandbox_settings(refs, sandbox)
     out_dir = check_output(out) if out is not None else None
 
     jobs, suite_info = [], []
     for s in suite_objs:
-        built = s.episodes(split)
+        if split == private_split.PRIVATE:  # nothing shipped identifies these, nor their order
+            built = private_split.private_episodes(s, secret)
+            info = {"root_seed": None, "hash": sha256_of([entry(sc) for sc in built]),
+                    "content_sha256": content_digest(built), "content_matches": None}
+        else:
+            built = s.episodes(split)
+            definition = s.to_dict()
+            info = {"root_seed": s.root_seed(split), "hash": s.hash(split),
+                    "content_sha256": definition["content_sha256"][split],
+                    "content_matches": content_digest(built) == definition["content_sha256"][split]}
         run = built if episodes is None else built[:episodes]
         jobs += [Job(s.name, split, k, s.env_id, sc) for k, sc in enumerate(run)]
-        definition = s.to_dict()
         suite_info.append({"name": s.name, "version": s.version, "family": s.family, "env_id": s.env_id,
-                           "split": split, "root_seed": s.root_seed(split), "hash": s.hash(split),
-                           "definition_hash": s.hash(), "content_sha256": definition["content_sha256"][split],
-                           "content_matches": content_digest(built) == definition["content_sha256"][split],
+                           "split": split, **info, "definition_hash": s.hash(),
                            "episodes_defined": len(built), "episodes_run": len(run),
                            "hours": sum(sc.duration for sc in run) / 3600.0})
+    code = {ref: code_digest(ref) for ref in refs}  # located, never run, in this process
 
     t0 = time.monotonic()
     created = datetime.now(timezone.utc).isoformat(timespec="seconds")
@@ -228,7 +248,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
             if o.trace["score"] != recorded:
                 notes.append(f"not deterministic: its worst episode scored {recorded:.3f}, then "
                              f"{o.trace['score']:.3f} when re-run for the report")
-        entries.append({"name": ref, "reference": ref, "status": o.status, "reason": o.reason,
+        entries.append({"name": ref, "reference": ref, "code": code[ref], "status": o.status, "reason": o.reason,
                         "traceback": o.traceback, "wall_time_s": o.wall_time_s, "notes": notes,
                         "log": f"logs/{Path(o.log).name}" if staging is not None else o.log,
                         "summary": summarise_controller(o.episodes, names) if o.status == "ok" else None,
@@ -238,9 +258,11 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
         "format": "acc_gym.leaderboard/1", "created": created, "versions": versions(),
         "platform": platform.platform(), "cpu_count": os.cpu_count(), "command": list(sys.argv),
         "suites": suite_info, "split": split, "episodes_cap": episodes, "controllers": refs,
+        "secret_commitment": private_split.commitment(secret) if split == private_split.PRIVATE else None,
         "settings": {"workers": workers, "step_budget_s": step_budget, "budget_s": budget,
                      "start_method": START_METHOD, "in_flight": IN_FLIGHT},
         "sandbox": sandbox_info, "ranking_rule": RANKING_RULE,
+        "results_key_id": None if key is None else signature({}, key)["key_id"],
         "timings": {"total_wall_s": time.monotonic() - t0,
                     "controllers_wall_s": {e["name"]: e["wall_time_s"] for e in entries}},
     }
@@ -255,7 +277,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
             from acc_gym.leaderboard.report import render_html
 
             html = render_html(results, trace_map)
-        names = write_files(results, staging, html)
+        names = write_files(results, staging, html, key)
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(staging, 0o777 & ~umask)  # as a directory made with mkdir would be (mkdtemp's is private)

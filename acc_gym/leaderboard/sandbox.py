@@ -158,6 +158,51 @@ def bwrap_available() -> str | None:
     return shutil.which("bwrap")
 
 
+_BWRAP_PROBES: dict = {}
+
+
+def bwrap_problem(uid: int | None = None) -> str | None:
+    """Why ``sandbox="bwrap"`` cannot run here (``None`` when it can).
+
+    Installed is not enough: a container may refuse the namespaces bubblewrap needs
+    (Docker's default seccomp profile does). So this starts the interpreter inside a
+    sandbox built as :class:`ControllerProcess` builds it, under the same user id the
+    controllers get, once per id, and reports bwrap's own message when that fails.
+    """
+    if uid in _BWRAP_PROBES:
+        return _BWRAP_PROBES[uid]
+    exe = bwrap_available()
+    if exe is None:
+        problem = "bubblewrap (bwrap) is not installed: apt-get install bubblewrap"
+    else:
+        workdir = tempfile.mkdtemp(prefix="acc-gym-bwrap-probe-")
+        try:
+            if uid is not None:  # the controller's working directory is its own
+                os.chown(workdir, uid, uid)
+            cmd = [exe, *_bwrap_flags(workdir), sys.executable, "-c", "pass"]
+            kw = dict(user=uid, group=uid, extra_groups=[]) if uid is not None else {}
+            try:
+                done = subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, timeout=60,
+                                      cwd=workdir, **kw)
+                problem = None if done.returncode == 0 else (
+                    f"bwrap cannot start a sandbox here (exit {done.returncode}): "
+                    f"{done.stderr.decode(errors='replace').strip()[:300] or 'no message'}")
+            except (OSError, subprocess.SubprocessError) as exc:
+                problem = f"bwrap cannot start a sandbox here: {exc}"
+        finally:
+            shutil.rmtree(workdir, ignore_errors=True)
+    _BWRAP_PROBES[uid] = problem
+    return problem
+
+
+def _bwrap_flags(workdir: str) -> list[str]:
+    """The sandbox: the file system read-only, a private /tmp, /dev and /proc, no network,
+    no shared IPC or PID namespace, a new session, and death with its parent."""
+    return ["--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--tmpfs", "/tmp",
+            "--bind", workdir, workdir, "--unshare-all", "--die-with-parent", "--new-session",
+            "--chdir", workdir]
+
+
 class ControllerProcess:
     """The trusted side's handle on one controller's sandboxed process."""
 
@@ -199,9 +244,7 @@ class ControllerProcess:
         exe = bwrap_available()
         if exe is None:
             raise RuntimeError("sandbox 'bwrap' needs the bubblewrap program (apt-get install bubblewrap)")
-        return [exe, "--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--tmpfs", "/tmp",
-                "--bind", self.workdir, self.workdir, "--unshare-all", "--die-with-parent", "--new-session",
-                "--chdir", self.workdir, *cmd]
+        return [exe, *_bwrap_flags(self.workdir), *cmd]
 
     def close(self) -> None:
         """End the controller and everything it started; remove its working directory."""

@@ -35,8 +35,16 @@ definition is reviewable and diffable, its hash is fixed at release, and the tes
 regenerate it from the code and check that content and hash agree (and that the episodes
 still build to the recorded content digest), so any drift is a failing test, not a
 silent change. Each file stores ``sha256`` of its definition; a file edited by hand or
-damaged is refused by name. To make a new version, add a suite with a new name and run
-``python -m acc_gym.suites.generate NAME`` (it writes the file atomically).
+damaged is refused by name.
+
+**Pinned.** A file's own ``sha256`` only catches damage: whoever edits a parameter can
+recompute it. So each released suite's definition hash is also compiled into the
+package, in :data:`PINNED`, and :func:`get_suite` refuses a file whose definition hashes
+to anything else, naming the file -- an edited data file (by a user, or by a controller
+on a machine where controllers can write the installation) is an error, not a silently
+different benchmark. To make a new version, add a suite with a new name, run
+``python -m acc_gym.suites.generate NAME`` (it writes the file atomically and prints the
+hash) and add that hash to :data:`PINNED`; a released entry never changes.
 """
 
 from __future__ import annotations
@@ -56,6 +64,13 @@ from acc_gym.suites.suite import (
 
 DATA_DIR = Path(__file__).with_name("data")
 FILE_FORMAT = "acc_gym.suite/1"
+# sha256 of each released suite's definition (all splits): the data files must hash to these
+PINNED = {
+    "carfollowing-v1": "96e543fba1374302c1df0b3826134bcd504e7de67cc55bf5e0691058f750164c",
+    "malicious-v1": "9c494ace3599ed88ff7487a53d75937f96945092088001716a819a955afc323c",
+    "ncap-v1": "4c807fa8938850c3a408e05b6d2086de63d1fbeb262c1271af48867ec8346d89",
+    "singlelane-v1": "1d28000280111f810b6b5e5a4fceb68451c94932d37fc5a7dda4c4cf6bedffda",
+}
 
 
 def _templates() -> dict[str, Suite]:
@@ -122,7 +137,17 @@ def _load(name: str) -> Suite:
     if not path.exists():
         raise ValueError(f"suite {name!r}: its definition file {str(path)!r} is missing (regenerate it with: "
                          f"python -m acc_gym.suites.generate {name})")
-    return Suite.from_dict(read_definition(path), template)
+    definition = read_definition(path)
+    pinned = PINNED.get(name)
+    actual = definition_hash(definition)
+    if pinned is None:
+        raise ValueError(f"suite {name!r} has no pinned hash: add {name!r}: {actual!r} to "
+                         f"acc_gym.suites.PINNED once its definition file {str(path)!r} is final")
+    if actual != pinned:
+        raise ValueError(f"suite file {str(path)!r} is not the released {name}: its definition hashes to "
+                         f"{actual[:12]}..., the package pins {pinned[:12]}... (edited after release? reinstall "
+                         f"acc-gym, or make a new suite version with a new name)")
+    return Suite.from_dict(definition, template)
 
 
 def get_suite(name: str) -> Suite:
@@ -139,5 +164,5 @@ def template(name: str) -> Suite:
     return _templates()[name]
 
 
-__all__ = ["SPLITS", "Suite", "data_path", "definition_hash", "derive_root_seed", "get_suite", "list_suites",
+__all__ = ["PINNED", "SPLITS", "Suite", "data_path", "definition_hash", "derive_root_seed", "get_suite", "list_suites",
            "read_definition", "template"]

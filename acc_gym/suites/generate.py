@@ -11,7 +11,7 @@ import os
 import sys
 import tempfile
 
-from acc_gym.suites import data_path, file_text, list_suites, read_definition, template
+from acc_gym.suites import PINNED, data_path, definition_hash, file_text, list_suites, read_definition, template
 
 
 def write(name: str) -> str:
@@ -35,7 +35,12 @@ def write(name: str) -> str:
 def main(argv=None) -> int:
     names = (sys.argv[1:] if argv is None else argv) or list_suites()
     for name in names:
-        print(write(name))
+        path = write(name)
+        digest = definition_hash(read_definition(path))
+        pinned = PINNED.get(name)
+        note = "pinned" if pinned == digest else (f"NOT the pinned {pinned[:12]}..." if pinned else
+                                                  "not pinned yet: add it to acc_gym.suites.PINNED")
+        print(f"{path}  sha256 {digest} ({note})")
     return 0
 
 

@@ -58,6 +58,7 @@ from acc_gym.scenarios import build
 from acc_gym.scenarios.spec import Scenario
 
 SPLITS = ("dev", "test")
+PRIVATE_ORDER_STREAM = 0x5EC2E7  # the shuffle's generator: default_rng([root_seed, this])
 HOUR = 3600.0  # [s]
 ROUND_DECIMALS = 6  # of the content digest
 PARAM_DECIMALS = 6  # a suite episode's parameters are stored and built at this many decimals
@@ -169,8 +170,30 @@ class Suite:
         built from its canonical (rounded) parameters."""
         if isinstance(index, bool) or int(index) != index or index < 0:
             raise ValueError(f"index must be a non-negative integer, got {index!r}")
-        rng = np.random.default_rng([int(index), self.root_seed(split)])
-        return canonical_scenario(self.generator(int(index), rng))
+        return self._drawn(int(index), self.root_seed(split))
+
+    def _drawn(self, index: int, root_seed: int) -> Scenario:
+        rng = np.random.default_rng([index, root_seed])
+        return canonical_scenario(self.generator(index, rng))
+
+    def private_episodes(self, root_seed: int) -> list[Scenario]:
+        """A private split's episode list: as many as the test split holds (``count``, or
+        the first scenarios reaching ``hours``), drawn by the suite's own generator from
+        ``root_seed`` (see :mod:`acc_gym.suites.private`: derived from a host's secret),
+        then shuffled by a generator seeded from the same root, so that neither the
+        episodes nor their order come from anything shipped."""
+        if isinstance(root_seed, bool) or not isinstance(root_seed, int) or root_seed < 0:
+            raise ValueError(f"root_seed must be a non-negative integer, got {root_seed!r}")
+        if self.count is not None:
+            drawn = [self._drawn(i, root_seed) for i in range(int(self.count))]
+        else:
+            drawn, elapsed, i = [], 0.0, 0
+            while elapsed < self.hours * HOUR:
+                drawn.append(self._drawn(i, root_seed))
+                elapsed += drawn[-1].duration
+                i += 1
+        order = np.random.default_rng([root_seed, PRIVATE_ORDER_STREAM]).permutation(len(drawn))
+        return [drawn[k] for k in order]
 
     def stream(self, split: str = "test", hours: float | None = None, start: int = 0) \
             -> Iterator[tuple[int, Scenario]]:

@@ -6,8 +6,8 @@ environment's observation (a single ``(7,)``/``(11,)`` vector or a batch ``(n, 7
 (:data:`BUILTINS`, factories) are what ``acc-gym evaluate NAME`` accepts.
 """
 
-from agents.controllers.linear import ConstantSpeed, LinearACC
-from agents.controllers.models import ModelController, cacc, fuzzy, gipps, gm, idm, mp_cacc, mpc
+from acc_gym_agents.controllers.linear import ConstantSpeed, LinearACC
+from acc_gym_agents.controllers.models import ModelController, cacc, fuzzy, gipps, gm, idm, mp_cacc, mpc
 
 BUILTINS = {"acc": LinearACC, "cacc": cacc, "mp-cacc": mp_cacc, "idm": idm, "gipps": gipps, "gm": gm,
             "fuzzy": fuzzy, "mpc": mpc, "constant": ConstantSpeed}

@@ -20,7 +20,7 @@ from acc_gym.drivers.base import Observation
 from acc_gym.drivers.baselines import (ACC, GM, IDM, ACCParams, Fuzzy, FuzzyParams, Gipps, GippsParams, GMParams,
                                        IDMParams)
 from acc_gym.drivers.mpc import MPCDriver, MPCDriverParams
-from agents.controllers.linear import _Policy
+from acc_gym_agents.controllers.linear import _Policy
 
 
 def observation(o: np.ndarray) -> Observation:

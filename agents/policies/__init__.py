@@ -2,7 +2,7 @@
 
 Each is a run directory of ``acc-gym train`` (model, observation normalisation,
 manifest with the exact settings, evaluations) plus its actor exported to numpy
-(``policy.npz``, :mod:`agents.rl.mlp`). They load with the numpy actor, so they run on the
+(``policy.npz``, :mod:`acc_gym_agents.rl.mlp`). They load with the numpy actor, so they run on the
 core install without torch or stable-baselines3 and sit on the leaderboard beside the
 hand-written controllers; ``load_shipped(name, backend="sb3")`` loads the
 stable-baselines3 model instead (to fine-tune it, or to sample actions).
@@ -28,6 +28,11 @@ def shipped_path(name: str) -> Path:
 
 def load_shipped(name: str, backend: str = "numpy"):
     """The shipped policy ``name`` as a controller (``predict(obs, deterministic=True)``)."""
-    from agents.rl.policy import load_policy
+    from acc_gym_agents.rl.policy import load_policy
 
     return load_policy(shipped_path(name), backend=backend)
+
+
+def ppo_acc():
+    """The shipped ``ppo-acc`` (the ``acc_gym.controllers`` entry point of that name)."""
+    return load_shipped("ppo-acc")

@@ -1,7 +1,7 @@
 """Score controllers on held-out seeds, per scenario family: the shipped policy's bar.
 
-    python -m agents.policies.heldout                      # ppo-acc and acc
-    python -m agents.policies.heldout --controllers ppo-acc acc cacc mp-cacc idm gipps gm fuzzy mpc constant \
+    python -m acc_gym_agents.policies.heldout                      # ppo-acc and acc
+    python -m acc_gym_agents.policies.heldout --controllers ppo-acc acc cacc mp-cacc idm gipps gm fuzzy mpc constant \
         --json agents/policies/ppo_acc/heldout.json        # the README table (~2.5 min)
 
 Families: paper 003's car-following test at 60, 90 and 120 km/h
@@ -86,7 +86,7 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     results = heldout(args.controllers, args.episodes, args.singlelane_episodes, args.seed)
     print(table(results))
-    from agents.controllers import BUILTINS
+    from acc_gym_agents.controllers import BUILTINS
 
     for name in args.controllers:
         if name not in BUILTINS:  # trained policies: the bar is theirs

@@ -11,7 +11,7 @@ microseconds instead of a torch call.
 What is exported: the actor's hidden layers (``mlp_extractor.policy_net``: Linear layers
 with Tanh or ReLU activations) and its output layer (``action_net``), plus the action
 bounds. Observation normalisation and the residual law stay where they are
-(``obs_rms.npz``, the manifest; :class:`agents.rl.policy.SB3Policy`). Only PPO's
+(``obs_rms.npz``, the manifest; :class:`acc_gym_agents.rl.policy.SB3Policy`). Only PPO's
 unsquashed Gaussian policies are supported (SAC and TD3 squash with tanh and keep their
 actor elsewhere): exporting anything else is an error, not an approximation.
 
@@ -132,7 +132,7 @@ def from_sb3(model) -> NumpyActor:
 
 def export(run) -> Path:
     """Write ``policy.npz`` into a PPO run directory (``acc-gym train`` output) and return its path."""
-    from agents.rl.policy import MODEL_FILE, read_manifest
+    from acc_gym_agents.rl.policy import MODEL_FILE, read_manifest
 
     run = Path(run)
     algo = read_manifest(run)["algo"]

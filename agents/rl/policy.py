@@ -3,10 +3,10 @@
 Training normalises observations (``VecNormalize``); the running mean and variance are
 saved next to the model (``obs_rms.npz``) and applied here, so a saved model is scored
 through the same path as the hand-written controllers. A residual run (``residual`` in
-its manifest, :mod:`agents.rl.residual`) executes ``clip(base(obs) + scale * model(obs),
+its manifest, :mod:`acc_gym_agents.rl.residual`) executes ``clip(base(obs) + scale * model(obs),
 -1, 1)`` with the base controller on the raw observation (and the proper-response shield
 when ``shield`` is set), as in training. A PPO run also holds its actor exported to
-numpy (``policy.npz``, :mod:`agents.rl.mlp`), which :func:`load_policy` prefers: it needs
+numpy (``policy.npz``, :mod:`acc_gym_agents.rl.mlp`), which :func:`load_policy` prefers: it needs
 neither torch nor stable-baselines3.
 """
 
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.rl.residual_law import check_overspeed, check_scale, check_shield, controller_action, make_base
+from acc_gym_agents.rl.residual_law import check_overspeed, check_scale, check_shield, controller_action, make_base
 
 ALGOS = ("ppo", "sac", "td3")
 MODEL_FILE = "model.zip"
@@ -29,7 +29,7 @@ class SB3Policy:
     """A loaded model plus its observation normalisation (and, for a residual run, its base controller).
 
     ``model`` is anything with stable-baselines3's ``predict(obs, deterministic=...)``: the
-    stable-baselines3 model itself or its numpy export (:class:`agents.rl.mlp.NumpyActor`).
+    stable-baselines3 model itself or its numpy export (:class:`acc_gym_agents.rl.mlp.NumpyActor`).
     """
 
     def __init__(self, model, mean: np.ndarray, var: np.ndarray, clip: float = 10.0, eps: float = 1e-8,
@@ -79,14 +79,14 @@ BACKENDS = ("numpy", "sb3")
 
 
 def load_policy(path, backend: str | None = None) -> SB3Policy:
-    """Load a run directory written by :func:`agents.rl.train.train` (or its ``model.zip``).
+    """Load a run directory written by :func:`acc_gym_agents.rl.train.train` (or its ``model.zip``).
 
     ``backend``: ``"sb3"`` loads ``model.zip`` with stable-baselines3 (needs torch);
-    ``"numpy"`` evaluates the exported actor ``policy.npz`` (:mod:`agents.rl.mlp`; no
+    ``"numpy"`` evaluates the exported actor ``policy.npz`` (:mod:`acc_gym_agents.rl.mlp`; no
     torch, deterministic actions only). ``None``: numpy when the run has a ``policy.npz``
     and the path is not the ``model.zip`` itself, else stable-baselines3.
     """
-    from agents.rl.mlp import POLICY_FILE, NumpyActor
+    from acc_gym_agents.rl.mlp import POLICY_FILE, NumpyActor
 
     path = Path(path)
     run = path.parent if path.suffix == ".zip" else path
@@ -97,7 +97,7 @@ def load_policy(path, backend: str | None = None) -> SB3Policy:
         raise ValueError(f"unknown policy backend {backend!r}; use one of {BACKENDS}")
     if backend == "numpy":
         if not (run / POLICY_FILE).is_file():
-            raise ValueError(f"{run}: no {POLICY_FILE}; export it with agents.rl.mlp.export({str(run)!r})")
+            raise ValueError(f"{run}: no {POLICY_FILE}; export it with acc_gym_agents.rl.mlp.export({str(run)!r})")
         model = NumpyActor.load(run / POLICY_FILE)
     else:
         import stable_baselines3 as sb3
@@ -110,3 +110,12 @@ def load_policy(path, backend: str | None = None) -> SB3Policy:
                      residual_scale=manifest.get("residual_scale") if residual is not None else None,
                      shield=manifest.get("shield"), residual_kwargs=manifest.get("residual_kwargs"),
                      max_overspeed=manifest.get("max_overspeed"))
+
+
+def load_run(path):
+    """A run directory of ``acc-gym train`` (or its ``model.zip``) as a controller, or None
+    when ``path`` is neither (the ``acc_gym.controller_loaders`` entry point)."""
+    p = Path(path)
+    if not ((p.is_dir() and (p / MANIFEST_FILE).is_file()) or (p.suffix == ".zip" and p.is_file())):
+        return None
+    return load_policy(p)

@@ -19,8 +19,8 @@ above the set speed as followable, policies learnt to drive above the set speed 
 gaps to them; the cap keeps that out whatever the score rewards.
 
 :class:`ResidualVecEnv` applies it during training; it sits directly on
-:class:`agents.rl.vec_env.SB3VecEnv`, *below* ``VecNormalize``, so it sees raw
-observations. :class:`agents.rl.policy.SB3Policy` applies the same function at inference
+:class:`acc_gym_agents.rl.vec_env.SB3VecEnv`, *below* ``VecNormalize``, so it sees raw
+observations. :class:`acc_gym_agents.rl.policy.SB3Policy` applies the same function at inference
 (the run's manifest records ``residual``, ``residual_kwargs``, ``residual_scale``,
 ``shield`` and ``max_overspeed``), so a saved residual run is an ordinary controller for
 ``acc-gym evaluate``.
@@ -36,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
 
-from agents.rl.residual_law import (  # noqa: F401  (re-exported: the law is part of this module's interface)
+from acc_gym_agents.rl.residual_law import (  # noqa: F401  (re-exported: the law is part of this module's interface)
     BASES,
     SHIELD_B,
     SHIELD_DECEL,

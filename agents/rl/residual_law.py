@@ -1,11 +1,11 @@
-"""The residual law of :mod:`agents.rl.residual`, in plain numpy (no torch, no stable-baselines3).
+"""The residual law of :mod:`acc_gym_agents.rl.residual`, in plain numpy (no torch, no stable-baselines3).
 
 The executed action of a residual policy is ``clip(a_base(obs) + scale * clip(a_rl, -1, 1),
 -1, 1)``, then the optional set-speed cap and proper-response shield. Training
-(:class:`agents.rl.residual.ResidualVecEnv`) and inference
-(:class:`agents.rl.policy.SB3Policy`) both call :func:`controller_action`, so a saved
+(:class:`acc_gym_agents.rl.residual.ResidualVecEnv`) and inference
+(:class:`acc_gym_agents.rl.policy.SB3Policy`) both call :func:`controller_action`, so a saved
 residual policy acts exactly as it did in training, and a policy exported to numpy
-(:mod:`agents.rl.mlp`) runs without torch.
+(:mod:`acc_gym_agents.rl.mlp`) runs without torch.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 
 
 def _bases() -> dict:
-    from agents.controllers.linear import ConstantSpeed, LinearACC
+    from acc_gym_agents.controllers.linear import ConstantSpeed, LinearACC
 
     # stateless laws only: the wrapper evaluates them on a batch of observations at every step
     return {"acc": LinearACC, "constant": ConstantSpeed}

@@ -3,7 +3,7 @@
     acc-gym train ppo --env acc_gym/CarFollowing-v0 --timesteps 200000 --seed 0 --out runs/ppo
 
 writes into ``--out``: ``model.zip`` (the final model), for PPO ``policy.npz`` (its actor in
-plain numpy, :mod:`agents.rl.mlp`; the final evaluation scores it), ``obs_rms.npz`` (observation
+plain numpy, :mod:`acc_gym_agents.rl.mlp`; the final evaluation scores it), ``obs_rms.npz`` (observation
 normalisation), ``checkpoints/`` (a model, its normalisation and a short manifest at every evaluation),
 ``evaluations.json`` (the 100-point score on held-out seeds at every evaluation) and
 ``manifest.json`` (package versions, algorithm, env id, config, seeds, budget, timings),
@@ -11,9 +11,9 @@ all written atomically. Evaluation seeds come from ``seed + 1_000_003`` -- never
 training seed.
 
 ``residual="acc"`` trains a residual policy on top of the linear ACC (executed action
-``clip(a_acc(obs) + residual_scale * a_rl, -1, 1)``, :mod:`agents.rl.residual`);
+``clip(a_acc(obs) + residual_scale * a_rl, -1, 1)``, :mod:`acc_gym_agents.rl.residual`);
 ``score_bonus`` adds ``score_bonus * score / 100`` at each episode's end. Both are
-recorded in the manifest, and :func:`agents.rl.policy.load_policy` applies the residual.
+recorded in the manifest, and :func:`acc_gym_agents.rl.policy.load_policy` applies the residual.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from acc_gym._io import atomic_write
-from agents.rl.policy import ALGOS, MANIFEST_FILE, MODEL_FILE, RMS_FILE, SB3Policy
+from acc_gym_agents.rl.policy import ALGOS, MANIFEST_FILE, MODEL_FILE, RMS_FILE, SB3Policy
 
 EVAL_SEED_OFFSET = 1_000_003
 
@@ -86,11 +86,11 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
           mix: dict | None = None, train_scoring: dict | None = None, **env_settings) -> Path:
     """Train ``algo`` (``ppo``, ``sac``, ``td3``) and write the run directory; returns its path.
 
-    ``residual``: a base controller name (:data:`agents.rl.residual.BASES`, its settings
+    ``residual``: a base controller name (:data:`acc_gym_agents.rl.residual.BASES`, its settings
     ``residual_kwargs``) to learn a correction of, scaled by ``residual_scale``; ``shield``:
     cap the action at a firm brake while the observed Q < 0, ``"base"``: and at the base
-    controller's action (:func:`agents.rl.residual.proper_response_shield`); ``max_overspeed``: cap the speed at the
-    set speed plus this (:func:`agents.rl.residual.speed_cap`); ``score_bonus``: weight of the
+    controller's action (:func:`acc_gym_agents.rl.residual.proper_response_shield`); ``max_overspeed``: cap the speed at the
+    set speed plus this (:func:`acc_gym_agents.rl.residual.speed_cap`); ``score_bonus``: weight of the
     episode's 100-point score (/100) added to its last reward; ``mix``: scenario families (or
     ids) and their shares (:func:`mix_settings`), instead of ``scenarios`` / ``weights``;
     ``train_scoring``: :class:`~acc_gym.evaluation.ScoringConfig` settings for the *training*
@@ -104,14 +104,14 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
 
     import acc_gym  # noqa: F401  (registers the ids)
     from acc_gym.evaluation.runner import evaluate
-    from agents.rl.vec_env import SB3VecEnv
+    from acc_gym_agents.rl.vec_env import SB3VecEnv
 
     if algo not in ALGOS:
         raise ValueError(f"unknown algorithm {algo!r}; use one of {list(ALGOS)}")
     for name, value in (("timesteps", timesteps), ("num_envs", num_envs), ("eval_episodes", eval_episodes)):
         if int(value) != value or value < 1:
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    from agents.rl.residual_law import check_shield
+    from acc_gym_agents.rl.residual_law import check_shield
 
     shield = check_shield(shield)  # stored normalised: None, "proper-response" or "base"
     spec = gym.spec(env_id)  # raises for an unknown id
@@ -131,7 +131,7 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
     (out / "checkpoints").mkdir(parents=True, exist_ok=True)
     raw = SB3VecEnv(int(num_envs), seed=int(seed), **train_settings)
     if residual is not None:
-        from agents.rl.residual import ResidualVecEnv, check_scale
+        from acc_gym_agents.rl.residual import ResidualVecEnv, check_scale
 
         residual_scale = check_scale(residual_scale)
         raw = ResidualVecEnv(raw, residual, residual_scale, shield, residual_kwargs,  # below VecNormalize: raw obs
@@ -141,7 +141,7 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
     if (residual_kwargs or max_overspeed is not None) and residual is None:
         raise ValueError("residual_kwargs and max_overspeed need a residual base controller (residual='acc')")
     if score_bonus:
-        from agents.rl.residual import ScoreBonusVecEnv
+        from acc_gym_agents.rl.residual import ScoreBonusVecEnv
 
         raw = ScoreBonusVecEnv(raw, score_bonus)
     venv = VecNormalize(raw, norm_obs=True, norm_reward=False, clip_obs=10.0)
@@ -191,10 +191,10 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
         # the callback ran before the last update (rollout collection comes first): score the final model
         evaluations.pop()
     # a PPO run also keeps its actor in plain numpy, which is what load_policy runs by default
-    # (agents.rl.mlp; no torch needed): the final evaluation scores that, so it is reproducible
+    # (acc_gym_agents.rl.mlp; no torch needed): the final evaluation scores that, so it is reproducible
     actor = None
     if algo == "ppo":
-        from agents.rl.mlp import POLICY_FILE, from_sb3
+        from acc_gym_agents.rl.mlp import POLICY_FILE, from_sb3
 
         actor = from_sb3(model)
     final = run_eval(done_at, actor)

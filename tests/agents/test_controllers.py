@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from acc_gym.evaluation.runner import evaluate, load_controller
-from agents.controllers import BUILTINS, LinearACC
-from agents.controllers.models import observation
+from acc_gym_agents.controllers import BUILTINS, LinearACC
+from acc_gym_agents.controllers.models import observation
 
 FAMILIES = ("acc_gym/CarFollowing-v0", "acc_gym/SingleLane-v0", "acc_gym/NCAP-v0", "acc_gym/StopAndGo-v0")
 

@@ -10,9 +10,9 @@ import torch
 
 import acc_gym  # noqa: F401
 from acc_gym.evaluation.runner import evaluate
-from agents.rl.mlp import POLICY_FILE, NumpyActor, export, from_sb3
-from agents.rl.policy import load_policy
-from agents.rl.train import train
+from acc_gym_agents.rl.mlp import POLICY_FILE, NumpyActor, export, from_sb3
+from acc_gym_agents.rl.policy import load_policy
+from acc_gym_agents.rl.train import train
 
 
 def observations(n: int, seed: int = 0) -> np.ndarray:

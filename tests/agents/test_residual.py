@@ -7,9 +7,9 @@ import pytest
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvWrapper
 
 from acc_gym.evaluation.runner import evaluate, load_controller
-from agents.controllers import LinearACC
-from agents.rl.policy import SB3Policy, load_policy
-from agents.rl.residual import (
+from acc_gym_agents.controllers import LinearACC
+from acc_gym_agents.rl.policy import SB3Policy, load_policy
+from acc_gym_agents.rl.residual import (
     ResidualVecEnv,
     ScoreBonusVecEnv,
     controller_action,
@@ -18,8 +18,8 @@ from agents.rl.residual import (
     residual_action,
     speed_cap,
 )
-from agents.rl.train import mix_settings, train
-from agents.rl.vec_env import SB3VecEnv
+from acc_gym_agents.rl.train import mix_settings, train
+from acc_gym_agents.rl.vec_env import SB3VecEnv
 
 
 class Recorder(VecEnvWrapper):
@@ -204,7 +204,7 @@ def test_tiny_residual_training_through_the_cli(tmp_path, capsys):
 
 
 def test_train_scoring_changes_the_training_environments_only(tmp_path, monkeypatch):
-    import agents.rl.vec_env as vec_env
+    import acc_gym_agents.rl.vec_env as vec_env
 
     seen = []
 

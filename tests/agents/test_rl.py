@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from acc_gym.evaluation.runner import evaluate, load_controller
-from agents.rl.policy import SB3Policy, load_policy
-from agents.rl.train import EVAL_SEED_OFFSET, train
-from agents.rl.vec_env import SB3VecEnv
+from acc_gym_agents.rl.policy import SB3Policy, load_policy
+from acc_gym_agents.rl.train import EVAL_SEED_OFFSET, train
+from acc_gym_agents.rl.vec_env import SB3VecEnv
 
 
 def test_adapter_resets_in_the_same_step_and_keeps_the_terminal_observation():

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from acc_gym.evaluation.runner import evaluate, load_controller
-from agents.policies import SHIPPED, load_shipped, shipped_path
+from acc_gym_agents.policies import SHIPPED, load_shipped, shipped_path
 from acc_gym.reproducibility import SCORE_TOLERANCE
-from agents.policies.heldout import FAMILIES, heldout, meets_bar
-from agents.rl.mlp import NumpyActor
-from agents.rl.policy import SB3Policy
+from acc_gym_agents.policies.heldout import FAMILIES, heldout, meets_bar
+from acc_gym_agents.rl.mlp import NumpyActor
+from acc_gym_agents.rl.policy import SB3Policy
 
 
 @pytest.mark.parametrize("name", sorted(SHIPPED))

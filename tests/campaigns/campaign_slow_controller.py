@@ -4,7 +4,7 @@ kill a campaign in the middle of a chunk. Same actions as the built-in ``acc``."
 import os
 import time
 
-from agents.controllers import LinearACC
+from acc_gym_agents.controllers import LinearACC
 
 
 class SlowACC(LinearACC):

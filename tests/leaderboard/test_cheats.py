@@ -9,7 +9,6 @@ be stopped (signals, writing files) are checked only where the runner can give i
 """
 
 import os
-import shutil
 import stat
 import tempfile
 import time
@@ -18,7 +17,8 @@ from pathlib import Path
 import pytest
 
 from acc_gym.leaderboard import load_results, run_leaderboard
-from acc_gym.leaderboard.sandbox import UID_BASE, own_uid_possible, processes_of
+from acc_gym.leaderboard import sandbox as sandbox_mod
+from acc_gym.leaderboard.sandbox import UID_BASE, bwrap_problem, own_uid_possible, processes_of
 
 HERE = Path(__file__).resolve().parent
 SUITES = ["ncap-v1", "carfollowing-v1"]
@@ -27,6 +27,7 @@ UID_ISOLATED, WHY_NOT = own_uid_possible()
 CHEATS = ["cheats:FullThrottle", "cheats:PatchesScorer", "cheats:Introspects", "cheats:FreezesClock",
           "cheats:ForgesDone", "cheats:Lingers", "cheats:EditsFiles", "cheats:Floods"] + \
          (["cheats:KillsOthers"] if UID_ISOLATED else [])
+BWRAP_PROBLEM = bwrap_problem(UID_BASE + 99 if UID_ISOLATED else None)  # installed, and allowed its namespaces
 needs_uid = pytest.mark.skipif(not UID_ISOLATED, reason=f"the controller cannot get its own user id here ({WHY_NOT}); "
                                                         f"without it a controller can signal and write as the runner")
 
@@ -146,8 +147,24 @@ def test_a_controller_cannot_write_the_package_the_suites_or_the_output(runs):
     assert not mode & stat.S_IWOTH
 
 
-@pytest.mark.skipif(shutil.which("bwrap") is None, reason="bubblewrap (bwrap) is not installed: apt-get install "
-                                                           "bubblewrap to test --sandbox bwrap")
+def test_an_unusable_bwrap_is_refused_before_anything_runs(monkeypatch, tmp_path):
+    """A bwrap that cannot start a sandbox (a container refusing its namespaces: here a
+    stand-in program that fails) stops the run with bwrap's reason, instead of ranking every
+    controller as crashed."""
+    bin_dir = Path(tempfile.mkdtemp(prefix="acc-gym-fake-bwrap-"))
+    bin_dir.chmod(0o755)  # run under the controllers' user id where they get one
+    fake = bin_dir / "bwrap"
+    fake.write_text("#!/bin/sh\necho 'bwrap: No permissions to create new namespace' >&2\nexit 1\n")
+    fake.chmod(0o755)
+    monkeypatch.setattr(sandbox_mod, "bwrap_available", lambda: str(fake))
+    monkeypatch.setattr(sandbox_mod, "_BWRAP_PROBES", {})
+    out = tmp_path / "board"
+    with pytest.raises(RuntimeError, match="bwrap.*not usable.*No permissions to create new namespace"):
+        run_leaderboard(["ncap-v1"], "test", ["acc"], episodes=1, out=out, sandbox="bwrap")
+    assert not out.exists()
+
+
+@pytest.mark.skipif(BWRAP_PROBLEM is not None, reason=f"--sandbox bwrap cannot run here: {BWRAP_PROBLEM}")
 def test_bwrap_sandbox_contains_the_cheats_too(runs):
     with pytest.MonkeyPatch.context() as mp:
         mp.syspath_prepend(str(HERE))

@@ -6,6 +6,7 @@ import json
 import numpy as np
 import pytest
 
+import acc_gym.suites as suites
 from acc_gym.scenarios import scenario_type
 from acc_gym.suites import (
     Suite,
@@ -176,6 +177,35 @@ def test_verify_and_file_check_catch_edits(tmp_path):
     bad.write_text(data_path("carfollowing-v1").read_text()[:500])
     with pytest.raises(ValueError, match="not valid JSON"):
         read_definition(bad)
+
+
+def test_every_suite_is_pinned_to_its_shipped_definition():
+    assert set(suites.PINNED) == set(NAMES)
+    for name in NAMES:
+        assert suites.PINNED[name] == definition_hash(read_definition(data_path(name))) == get_suite(name).hash()
+
+
+def test_an_edited_data_file_with_a_recomputed_sha256_is_refused_by_name(tmp_path, monkeypatch):
+    """Recomputing the file's own sha256 after an edit is not enough: the package pins the
+    released hash, and get_suite (hence the leaderboard) names the file it refuses."""
+    for f in suites.DATA_DIR.glob("*.json"):
+        (tmp_path / f.name).write_bytes(f.read_bytes())
+    d = read_definition(data_path("ncap-v1"))
+    d["episodes"]["test"][0]["params"]["v_ego"] = round(d["episodes"]["test"][0]["params"]["v_ego"] + 0.5, 6)
+    (tmp_path / "ncap-v1.json").write_text(suites.file_text(d), encoding="utf-8")
+    read_definition(tmp_path / "ncap-v1.json")  # consistent with its own sha256 ...
+    monkeypatch.setattr(suites, "DATA_DIR", tmp_path)
+    suites._load.cache_clear()
+    try:
+        with pytest.raises(ValueError, match=r"ncap-v1\.json.*not the released ncap-v1.*pins 4c807fa89388"):
+            get_suite("ncap-v1")
+        from acc_gym.leaderboard import run_leaderboard
+
+        with pytest.raises(ValueError, match=r"ncap-v1\.json.*not the released"):
+            run_leaderboard(["ncap-v1"], "test", ["constant"], episodes=1)
+        get_suite("carfollowing-v1")  # the untouched ones still load
+    finally:
+        suites._load.cache_clear()
 
 
 def test_to_dict_is_json_safe_and_complete():

@@ -1,0 +1,129 @@
+"""Controllers by name: a registry the core owns and does not fill itself.
+
+``acc-gym evaluate NAME``, the leaderboard and :func:`acc_gym.evaluation.runner.load_controller`
+resolve a controller's name here. The core registers nothing: names come from
+
+* the ``acc_gym.controllers`` **entry-point group** of any installed distribution (this
+  project's own built-ins -- ``acc``, ``idm``, ..., the shipped policy ``ppo-acc`` -- are
+  entry points of the ``acc-gym`` distribution, defined in the ``acc_gym_agents``
+  package); an entry point names a class or a factory that returns an object with
+  ``predict(obs, deterministic=True)``;
+* :func:`register_controller` for code that is not installed (a notebook, a test).
+
+A third-party package puts its controller on the leaderboard by name with, in its
+``pyproject.toml``::
+
+    [project.entry-points."acc_gym.controllers"]
+    my-acc = "my_package.controllers:MyACC"
+
+Saved models given by path (a run directory of ``acc-gym train`` or its ``model.zip``)
+are opened by the loaders of the ``acc_gym.controller_loaders`` group: each is called
+with the path and returns a controller, or None when the path is not of its kind.
+
+Resolution order: names given to :func:`register_controller` (in this process), then
+entry points. Two distributions that register the same name are an error naming both,
+not a silent choice.
+"""
+
+from __future__ import annotations
+
+from importlib import metadata
+
+GROUP = "acc_gym.controllers"
+LOADER_GROUP = "acc_gym.controller_loaders"
+CLI_GROUP = "acc_gym.cli"
+
+_REGISTERED: dict[str, tuple[object, str]] = {}
+
+
+def register_controller(name: str, factory, *, origin: str | None = None, replace: bool = False) -> None:
+    """Make ``name`` resolve to ``factory()`` (a class or a callable returning a controller)."""
+    if not isinstance(name, str) or not name or ":" in name or name != name.strip():
+        raise ValueError(f"a controller name must be a non-empty string without ':' or surrounding spaces, got "
+                         f"{name!r}")
+    if not callable(factory):
+        raise TypeError(f"controller {name!r}: the factory must be callable, got {type(factory).__name__}")
+    if name in _REGISTERED and not replace:
+        raise ValueError(f"controller {name!r} is registered already ({_REGISTERED[name][1]}); pass replace=True")
+    where = origin or f"register_controller ({getattr(factory, '__module__', '?')})"
+    _REGISTERED[name] = (factory, where)
+
+
+def unregister_controller(name: str) -> None:
+    """Forget a name given to :func:`register_controller` (entry points stay)."""
+    if name not in _REGISTERED:
+        raise ValueError(f"controller {name!r} was not registered with register_controller")
+    del _REGISTERED[name]
+
+
+def _entry_points(group: str) -> dict[str, list[metadata.EntryPoint]]:
+    found: dict[str, list[metadata.EntryPoint]] = {}
+    for ep in metadata.entry_points(group=group):
+        if not any(ep.value == other.value for other in found.get(ep.name, [])):  # the same one seen twice
+            found.setdefault(ep.name, []).append(ep)
+    return found
+
+
+def _origin(ep: metadata.EntryPoint) -> str:
+    dist = getattr(ep, "dist", None)
+    who = f"{dist.name} {dist.version}" if dist is not None else "an installed distribution"
+    return f"entry point {ep.value} ({who})"
+
+
+def registered_controllers() -> dict[str, str]:
+    """Every name that resolves, sorted, with where it comes from."""
+    out = {name: " | ".join(_origin(ep) for ep in eps) for name, eps in _entry_points(GROUP).items()}
+    out.update({name: origin for name, (_, origin) in _REGISTERED.items()})
+    return dict(sorted(out.items()))
+
+
+def controller_factory(name: str):
+    """The factory registered for ``name``, or None."""
+    if name in _REGISTERED:
+        return _REGISTERED[name][0]
+    eps = _entry_points(GROUP).get(name)
+    if not eps:
+        return None
+    if len(eps) > 1:
+        raise ValueError(f"controller {name!r} is registered twice: " + "; ".join(_origin(ep) for ep in eps))
+    try:
+        return eps[0].load()
+    except Exception as exc:  # noqa: BLE001  (an installed plugin that does not import)
+        raise ValueError(f"controller {name!r} ({_origin(eps[0])}) does not load: {type(exc).__name__}: {exc}") \
+            from None
+
+
+def make_controller(name: str):
+    """A new controller of the registered ``name`` (None if no such name)."""
+    factory = controller_factory(name)
+    if factory is None:
+        return None
+    obj = factory()
+    if not hasattr(obj, "predict"):
+        raise ValueError(f"controller {name!r}: its factory returned {type(obj).__name__}, which has no "
+                         f"predict(obs, deterministic=True)")
+    return obj
+
+
+def load_saved(path: str):
+    """A saved model at ``path`` through the installed loaders (None if none claims it)."""
+    for name, eps in sorted(_entry_points(LOADER_GROUP).items()):
+        for ep in eps:
+            loader = ep.load()
+            controller = loader(path)
+            if controller is not None:
+                return controller
+    return None
+
+
+def cli_plugins() -> dict[str, object]:
+    """Subcommands contributed to ``acc-gym`` (group ``acc_gym.cli``): name -> an object with
+    ``add_parser(subparsers)`` and ``run(args, parser) -> int``. One that does not import
+    (its extra is not installed) is left out."""
+    out = {}
+    for name, eps in sorted(_entry_points(CLI_GROUP).items()):
+        try:
+            out[name] = eps[0].load()
+        except ImportError:
+            continue
+    return out

@@ -1,0 +1,131 @@
+"""Integrity of a leaderboard's results: signed results.json, controllers' code digests,
+the private split as the leaderboard runs it."""
+
+import json
+import os
+import sys
+
+import pytest
+
+from acc_gym.cli import main
+from acc_gym.leaderboard import load_results, run_leaderboard
+from acc_gym.leaderboard.provenance import code_digest, files_digest
+from acc_gym.leaderboard.results import KEY_ENV, KEY_FILE_ENV, checksum, results_text, signature
+from acc_gym.suites import get_suite
+from acc_gym.suites import private
+from acc_gym.suites.suite import entry
+
+KEY = "host results key 0123456789abcdef"
+SECRET = "a host's private-split secret 42"
+
+
+@pytest.fixture(scope="module")
+def signed_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("signed") / "board"
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv(KEY_ENV, KEY)
+        r = run_leaderboard(["ncap-v1"], "test", ["constant", "idm"], episodes=2, out=out, report=False)
+    return r, out
+
+
+def test_results_are_signed_when_the_host_sets_a_key(signed_run, monkeypatch, tmp_path):
+    r, out = signed_run
+    doc = json.loads((out / "results.json").read_text())
+    assert doc["hmac"]["alg"] == "hmac-sha256" and KEY not in (out / "results.json").read_text()
+    assert doc["hmac"] == signature(doc["results"], KEY.encode())
+    assert r["manifest"]["results_key_id"] == doc["hmac"]["key_id"]
+    monkeypatch.setenv(KEY_ENV, KEY)
+    results = load_results(out)
+    assert results["ranking"] == r["ranking"]
+    # a rewritten file with a recomputed, valid checksum: detected once a key is set
+    forged = json.loads(json.dumps(results))
+    worst = forged["ranking"][-1]
+    c = next(c for c in forged["controllers"] if c["name"] == worst)
+    c["summary"]["overall"]["mean_points"] = 100.0
+    forged["ranking"] = [worst] + [n for n in forged["ranking"] if n != worst]
+    path = tmp_path / "results.json"
+    kept = {**doc, "results": forged, "sha256": checksum(forged)}  # the old signature, a new checksum
+    path.write_text(json.dumps(kept))
+    with pytest.raises(ValueError, match=r"results\.json.*fail verification: their HMAC does not match"):
+        load_results(path)
+    path.write_text(results_text(forged, key=None))  # unsigned, checksum valid
+    with pytest.raises(ValueError, match=r"results\.json.*not signed"):
+        load_results(path)
+    path.write_text(results_text(forged, key=b"the forger's own key, 32 bytes.."))
+    with pytest.raises(ValueError, match="fail verification.*another key"):
+        load_results(path)
+    monkeypatch.delenv(KEY_ENV)
+    assert load_results(path) == forged  # without the key only the checksum can be checked
+    key_file = tmp_path / "key"
+    key_file.write_text(KEY + "\n")
+    monkeypatch.setenv(KEY_FILE_ENV, str(key_file))
+    assert load_results(out) == results
+    with pytest.raises(ValueError, match="fail verification"):
+        load_results(path)
+
+
+def test_a_bad_results_key_is_refused_before_anything_runs(tmp_path, monkeypatch):
+    monkeypatch.setenv(KEY_ENV, "short")
+    with pytest.raises(ValueError, match="results key .*ACC_GYM_RESULTS_KEY.* 5 bytes"):
+        run_leaderboard(["ncap-v1"], "test", ["constant"], episodes=1, out=tmp_path / "b")
+    monkeypatch.delenv(KEY_ENV)
+    monkeypatch.setenv(KEY_FILE_ENV, str(tmp_path / "nope"))
+    with pytest.raises(ValueError, match=r"cannot read the results key file .*nope"):
+        run_leaderboard(["ncap-v1"], "test", ["constant"], episodes=1, out=tmp_path / "b")
+    assert not (tmp_path / "b").exists()
+
+
+def test_results_record_each_controllers_code(signed_run):
+    r, _ = signed_run
+    import acc_gym_agents
+
+    package = os.path.dirname(acc_gym_agents.__file__)
+    for c in r["controllers"]:
+        assert c["code"]["sha256"] == files_digest(package)[0] and c["code"]["module"] == "acc_gym_agents"
+
+
+def test_code_digest_reads_files_without_running_them(tmp_path):
+    marker = tmp_path / "ran"
+    pkg = tmp_path / "mylaws"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text(f"open({str(marker)!r}, 'w').close()\nclass Law: pass\n")
+    (pkg / "gains.json").write_text('{"k": 0.3}')
+    search = [str(tmp_path)] + sys.path
+    first = code_digest("mylaws.sub:Law", search)
+    assert not marker.exists()  # located, never imported
+    assert first["kind"] == "module" and first["files"] == 2 and first["path"] == str(pkg)
+    (pkg / "__pycache__").mkdir()
+    (pkg / "__pycache__" / "x.cpython-311.pyc").write_bytes(b"\0")
+    assert code_digest("mylaws:Law", search)["sha256"] == first["sha256"]  # caches do not count
+    (pkg / "gains.json").write_text('{"k": 0.4}')  # a data file is part of the code
+    assert code_digest("mylaws:Law", search)["sha256"] != first["sha256"]
+    assert code_digest("nowhere_to_be_found:X", search)["sha256"] is None
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    (run_dir / "model.zip").write_bytes(b"weights")
+    d = code_digest(str(run_dir), search)
+    assert d["kind"] == "files" and d["files"] == 1 and d["sha256"] == files_digest(run_dir)[0]
+
+
+def test_the_private_split_runs_unshipped_episodes_and_records_only_a_commitment(tmp_path, capsys):
+    secret_file = tmp_path / "secret"
+    secret_file.write_text(SECRET)
+    out = tmp_path / "board"
+    code = main(["leaderboard", "--suite", "carfollowing-v1", "--split", "private", "--secret", str(secret_file),
+                 "--controllers", "constant", "--episodes", "3", "--out", str(out), "--no-report"])
+    assert code == 0
+    text = (out / "results.json").read_text()
+    r = load_results(out)
+    m = r["manifest"]
+    assert m["split"] == "private" and m["secret_commitment"] == private.commitment(SECRET.encode())
+    assert SECRET not in text and SECRET.encode().hex() not in text
+    assert m["suites"][0]["root_seed"] is None
+    expected = private.private_episodes(get_suite("carfollowing-v1"), SECRET.encode())[:3]
+    ran = [(e["scenario"], e["scenario_seed"]) for e in r["controllers"][0]["episodes"]]
+    assert ran == [(sc.id, sc.seed) for sc in expected]
+    test_split = {repr(entry(sc)) for sc in get_suite("carfollowing-v1").episodes("test")}
+    assert not {repr(entry(sc)) for sc in expected} & test_split
+    with pytest.raises(ValueError, match="private split only"):
+        run_leaderboard(["ncap-v1"], "test", ["constant"], episodes=1, secret=SECRET)
+    with pytest.raises(ValueError, match="needs a secret"):
+        run_leaderboard(["ncap-v1"], "private", ["constant"], episodes=1)
