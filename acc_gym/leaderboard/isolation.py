@@ -94,10 +94,20 @@ def worst_index(records: list[dict]) -> int | None:
                key=lambda k: (records[k]["score"], not records[k]["metrics"]["collision"], k))
 
 
-def _where(jobs: list, indices: list[int], done: int) -> str:
-    job = jobs[min(indices)]
-    more = f" and {len(indices) - 1} more in flight" if len(indices) > 1 else ""
-    return f"{job.suite} episode {job.episode} ({job.scenario.id}){more}, after {done} of {len(jobs)} episodes"
+class _Where:
+    """Where a round trip was, described only if it failed (formatting it every step costs)."""
+
+    __slots__ = ("jobs", "indices", "done")
+
+    def __init__(self, jobs: list, indices: list[int], done: dict):
+        self.jobs, self.indices, self.done = jobs, indices, len(done)
+
+    def __str__(self) -> str:
+        job = self.jobs[min(self.indices)]
+        n = len(self.indices)
+        more = f" and {n - 1} more in flight" if n > 1 else ""
+        return (f"{job.suite} episode {job.episode} ({job.scenario.id}){more}, after {self.done} of "
+                f"{len(self.jobs)} episodes")
 
 
 class ControllerFailed(Exception):
@@ -148,6 +158,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
 
         import acc_gym  # noqa: F401  (registers the ids)
         from acc_gym.evaluation.runner import EpisodeRun
+        from acc_gym.leaderboard.batch import BatchRuns
 
         ctl = ControllerProcess(reference, log_path=log_path, budget=budget, uid=uid, sandbox=sandbox)
         try:
@@ -166,11 +177,50 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
         def env_for(slot: int, env_id: str):
             return envs.get((slot, env_id)) or envs.setdefault((slot, env_id), gym.make(env_id))
 
+        first = [True]
+
+        def run_batched(order: list[int], on_done) -> None:
+            """Run the jobs ``order``, each env id's as rows of one :class:`EpisodeBatch` with
+            ``in_flight`` rows (its scenes step together; bit-identical to single envs)."""
+            by_env: dict[str, list[int]] = {}
+            for j in order:
+                by_env.setdefault(jobs[j].env_id, []).append(j)
+            for env_id, queue in by_env.items():
+                batch = BatchRuns(gym.make(env_id).unwrapped, min(in_flight, len(queue)))
+                active: dict[int, int] = {}  # row -> job index
+                starts = np.zeros(batch.n, dtype=bool)
+                for row in range(batch.n):
+                    active[row] = queue.pop(0)
+                    batch.start(row, jobs[active[row]].scenario)
+                    starts[row] = True
+                while active:
+                    rows = np.array(sorted(active))
+                    where = _Where(jobs, [active[r] for r in rows], done_records)
+                    step_deadline = None if first[0] else time.monotonic() + step_budget * len(rows)
+                    actions = _exchange(ctl, batch.obs[rows].astype(float), starts[rows], rows, step_deadline,
+                                        deadline_total, step_budget, budget, where)
+                    first[0] = False
+                    starts[:] = False
+                    bad = ~np.isfinite(actions)
+                    if bad.any():  # what the env says of a NaN or infinite action
+                        job = jobs[active[int(rows[np.argmax(bad)])]]
+                        what = "is NaN" if np.isnan(actions[np.argmax(bad)]) else "must be finite"
+                        raise ControllerFailed(f"ValueError: action {what}: {actions[np.argmax(bad)]!r} (at "
+                                               f"{job.suite} episode {job.episode} ({job.scenario.id}))")
+                    for row, info in batch.step(rows, actions).items():
+                        on_done(active[row], info)
+                        if queue:
+                            active[row] = queue.pop(0)
+                            batch.start(row, jobs[active[row]].scenario)
+                            starts[row] = True
+                        else:
+                            del active[row]
+                            batch.idle(row)
+
         def run_jobs(order: list[int], record: bool, on_done) -> None:
-            """Run the jobs ``order`` in ``in_flight`` slots, lockstep round trips."""
+            """Run the jobs ``order`` in ``in_flight`` slots of single envs, lockstep round trips."""
             queue = list(order)
             active: dict[int, list] = {}  # slot -> [job index, EpisodeRun, starts now]
-            first = [True]
 
             def start(slot: int) -> None:
                 if queue:
@@ -183,7 +233,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
                 start(slot)
             while active:
                 slots = sorted(active)
-                where = _where(jobs, [active[s][0] for s in slots], len(done_records))
+                where = _Where(jobs, [active[s][0] for s in slots], done_records)
                 obs = np.stack([np.asarray(active[s][1].obs, dtype=float) for s in slots])
                 starts = np.array([active[s][2] for s in slots])
                 step_deadline = None if first[0] else time.monotonic() + step_budget * len(slots)
@@ -206,11 +256,11 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
 
         done_records: dict[int, dict] = {}
 
-        def record_episode(j: int, run) -> None:
-            done_records[j] = episode_record(jobs[j], run.info)
+        def record_episode(j: int, info: dict) -> None:
+            done_records[j] = episode_record(jobs[j], info)
             conn.send(("episode", j, done_records[j]))
 
-        run_jobs(list(range(len(jobs))), False, record_episode)
+        run_batched(list(range(len(jobs))), record_episode)
         ordered = [done_records[j] for j in range(len(jobs))]
         k = worst_index(ordered)
         if traces and k is not None:

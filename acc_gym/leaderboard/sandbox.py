@@ -154,6 +154,47 @@ def own_uid_possible(extra_paths=()) -> tuple[bool, str]:
     return True, ""
 
 
+CACHED_PACKAGES = ("acc_gym", "acc_gym_agents")  # whose compiled numba code a controller may reuse
+
+
+def seed_numba_cache(cache_dir: str, uid: int | None) -> int:
+    """Copy the installed packages' compiled numba code into a controller's own cache.
+
+    A controller cannot write the installed package, so numba would not use the package's
+    in-tree cache (its ``__pycache__`` must be writable) and would compile every kernel a
+    controller touches again -- 15 s for the MPC controller, in every run. Numba reads a
+    ``NUMBA_CACHE_DIR`` as ``<dir>/<source folder name>_<sha1 of its path>/``; the same
+    index and code files go there (copies: the controller may rewrite its own, never the
+    package's). Returns the number of files copied."""
+    import hashlib
+    import importlib.util
+
+    copied = 0
+    for name in CACHED_PACKAGES:
+        try:
+            spec = importlib.util.find_spec(name)
+        except (ImportError, ValueError):
+            spec = None
+        for root in (spec.submodule_search_locations or []) if spec is not None else []:
+            for dirpath, _, filenames in os.walk(root):
+                if os.path.basename(dirpath) != "__pycache__":
+                    continue
+                source_dir = os.path.dirname(os.path.abspath(dirpath))
+                files = [f for f in filenames if f.endswith((".nbi", ".nbc"))]
+                if not files:
+                    continue
+                target = os.path.join(cache_dir, os.path.basename(source_dir) + "_" +
+                                      hashlib.sha1(source_dir.encode()).hexdigest())
+                os.makedirs(target, exist_ok=True)
+                for f in files:
+                    shutil.copy2(os.path.join(dirpath, f), os.path.join(target, f))
+                    copied += 1
+                if uid is not None:
+                    for path in [target, *(os.path.join(target, f) for f in files)]:
+                        os.chown(path, uid, uid)
+    return copied
+
+
 def bwrap_available() -> str | None:
     return shutil.which("bwrap")
 
@@ -215,6 +256,7 @@ class ControllerProcess:
         if uid is not None:
             for d in (self.workdir, os.path.join(self.workdir, "numba")):
                 os.chown(d, uid, uid)
+        seed_numba_cache(os.path.join(self.workdir, "numba"), uid)
         self.sock, theirs = socket.socketpair()
         env = {"PATH": "/usr/local/bin:/usr/bin:/bin", "HOME": self.workdir, "TMPDIR": self.workdir,
                "PYTHONPATH": os.pathsep.join(search_path()), "NUMBA_CACHE_DIR": os.path.join(self.workdir, "numba"),
