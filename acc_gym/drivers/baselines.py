@@ -239,20 +239,30 @@ class GMParams:
     v_desired: float | np.ndarray = 25.0  # [m/s] free-road speed
     k_free: float | np.ndarray = 0.4  # [1/s] free-road speed gain
     a_max: float | np.ndarray = 2.0  # [m/s^2] free-road acceleration bound
+    # [m] the vehicle ahead's length: paper 003's GM divides by the distance between the two
+    # vehicles' heads (bumper gap + this), not the bumper gap (the package's car length)
+    length_ahead: float | np.ndarray = 4.7
 
     def __post_init__(self):
-        _validate(self, positive=("c", "v_desired", "k_free", "a_max"), nonnegative=("m", "l", "tau"))
+        _validate(self, positive=("c", "v_desired", "k_free", "a_max"), nonnegative=("m", "l", "tau", "length_ahead"))
 
 
 class GM(_Model):
-    """GM / Gazis-Herman-Rothery: own speed now, stimulus ``tau`` ago; min with the free-road law."""
+    """GM / Gazis-Herman-Rothery: own speed now, stimulus ``tau`` ago; min with the free-road law.
+
+    The distance is head to head, as paper 003 states it ("inversely proportional to the
+    distance between the heads of the two vehicles"): the bumper gap plus
+    ``length_ahead``. (Until 0.3.0 it was the bumper gap, which made the sensitivity
+    ``c / gap`` blow up at short gaps: full-brake steps of 40 m/s^3 at 60 and 90 km/h;
+    head to head, its largest jerk there is about 2 m/s^3 and only the final emergency stop
+    at 120 km/h still saturates.)"""
 
     params_type = GMParams
     name = "gm"
 
     def _law(self, now, seen):
         p = self.params
-        a = gm_accel(now.v, seen.gap, seen.v_lead - seen.v, p.c, p.m, p.l)
+        a = gm_accel(now.v, seen.gap + p.length_ahead, seen.v_lead - seen.v, p.c, p.m, p.l)
         a = np.where(_has(seen.gap), a, np.inf)
         return np.minimum(a, free_accel(now.v, p.v_desired, p.k_free, p.a_max))
 

@@ -12,6 +12,7 @@ from acc_gym.envs import _kernel as _K
 from acc_gym.envs.config import EnvConfig, ScenarioSampler
 from acc_gym.envs.core import EpisodeBatch
 from acc_gym.envs.reward import CriteriaReward
+from acc_gym.evaluation.scoring import score_episode
 from acc_gym.scenarios.registry import build
 from acc_gym.scenarios.spec import Scenario
 
@@ -44,6 +45,17 @@ def action_to_accel(action: np.ndarray, config: EnvConfig) -> np.ndarray:
         return out
     a = np.minimum(np.maximum(action, -1.0), 1.0)  # np.clip, at a fraction of its call overhead
     return np.where(a >= 0, a * config.accel_max, a * config.decel_max)
+
+
+def check_time_gap(value, what: str = "options['time_gap']") -> float | None:
+    """A controller's declared time gap [s] (a finite number > 0), or None."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{what} (the controller's declared time gap) must be a finite number of seconds > 0, "
+                         f"got {value!r}")
+    return float(value)
 
 
 def check_actions(actions, shape: tuple) -> np.ndarray:
@@ -142,6 +154,10 @@ class ACCEnv(gym.Env):
 
     The scenario's initial speeds and gaps (drawn from its parameter laws with the
     environment's generator; ``reset(options={"scenario": id_or_Scenario})`` forces one).
+    ``reset(options={"time_gap": h})`` declares the controller's own time gap [s]: the
+    episode (score, reward, violations) is judged at it, floored at 0.8 s and capped at the
+    scenario's nominal gap (:func:`acc_gym.evaluation.scoring.judged_tau1`);
+    :func:`acc_gym.evaluation.runner.run_episode` passes a controller's ``time_gap``.
 
     ## Episode End
 
@@ -203,13 +219,14 @@ class ACCEnv(gym.Env):
         super().reset(seed=seed)
         options = dict(options or {})
         scenario = options.pop("scenario", None)
+        time_gap = check_time_gap(options.pop("time_gap", None))
         if options:
-            raise ValueError(f"unknown reset option(s) {sorted(options)}; known: ['scenario']")
+            raise ValueError(f"unknown reset option(s) {sorted(options)}; known: ['scenario', 'time_gap']")
         if isinstance(scenario, str):
             scenario = build(scenario, seed=int(self.np_random.integers(0, 2 ** 31 - 1)), drivers=self.config.drivers)
         elif scenario is not None and not isinstance(scenario, Scenario):
             raise TypeError(f"options['scenario'] must be a scenario id or a Scenario, got {type(scenario).__name__}")
-        self.core.reset_rows([0], [self.np_random], [scenario])
+        self.core.reset_rows([0], [self.np_random], [scenario], [time_gap])
         self._needs_reset = False
         sc = self.scenario
         if self.render_mode == "human":
@@ -243,6 +260,18 @@ class ACCEnv(gym.Env):
         if self.render_mode == "human":
             self.render()
         return self.core.last_obs[0], float(reward[0]), bool(term[0]), bool(trunc[0]), out
+
+    def episode_report(self) -> dict:
+        """The report of the episode so far (its score, items and metrics, as the last
+        step's ``info["report"]``), however the episode ends: when an outer wrapper
+        (``TimeLimit``, ``gym.make(..., max_episode_steps=N)``) truncates it before the
+        scenario's end, this scores what was driven. After the episode's own end it is that
+        end's report. Needs at least one step since :meth:`reset`."""
+        if self.scenario is None:
+            raise RuntimeError("call reset() and step() before episode_report()")
+        if int(self.core.world.k[0]) < 1:
+            raise RuntimeError("episode_report() needs at least one step since reset() (a score needs two samples)")
+        return score_episode(self.core.trace(0), self.config.scoring).to_dict()
 
     def render(self):
         if self.render_mode is None:

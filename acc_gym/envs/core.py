@@ -17,7 +17,7 @@ from acc_gym.drivers.slots import SlotDrivers, SlotView
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.config import EnvConfig
 from acc_gym.envs.reward import CriteriaReward, StepIndicators
-from acc_gym.evaluation.scoring import DEFAULT_TAU1, score_episode
+from acc_gym.evaluation.scoring import judged_tau1, score_episode
 from acc_gym.evaluation.trace import EgoTrace
 from acc_gym.scenarios.spec import Scenario
 from acc_gym.scenarios.world import ABSENT_X, scene_arrays
@@ -51,6 +51,7 @@ class EpisodeBatch:
         self.set_speed = np.ones(self.n)
         self.time_gap = np.ones(self.n)
         self.tau1 = np.ones(self.n)
+        self.declared: list[float | None] = [None] * self.n  # the controllers' declared time gaps [s]
         self.n_lanes = np.ones(self.n)
         self.lane_width = np.full(self.n, LANE_WIDTH)
         self.neg_since = np.full(self.n, np.nan)  # when Q last turned negative [s]
@@ -77,9 +78,11 @@ class EpisodeBatch:
         return dict(zip(_RECORD, self._rec_arr))
 
     # ------------------------------------------------------------------ episodes
-    def reset_rows(self, rows, rngs, scenarios=None) -> None:
+    def reset_rows(self, rows, rngs, scenarios=None, time_gaps=None) -> None:
         """Start new episodes in scenes ``rows``: each draws its scenario with its generator
-        (``rngs[j]``) unless ``scenarios[j]`` is given."""
+        (``rngs[j]``) unless ``scenarios[j]`` is given; ``time_gaps[j]`` (None: none) is the
+        controller's declared time gap the episode is judged at
+        (:func:`acc_gym.evaluation.scoring.judged_tau1`)."""
         rows = [int(r) for r in np.atleast_1d(rows)]
         given = scenarios if scenarios is not None else [None] * len(rows)
         chosen = [sc if sc is not None else self.draw(rngs[j]) for j, sc in enumerate(given)]
@@ -98,13 +101,14 @@ class EpisodeBatch:
         for s, slot in enumerate(self.slots, start=1):
             for j, row in enumerate(rows):
                 slot.assign(row, arr.drivers[s][j])
-        tau_cfg = self.config.scoring.tau1
+        declared = time_gaps if time_gaps is not None else [None] * len(rows)
         for j, (row, sc) in enumerate(zip(rows, chosen)):
             self.scenarios[row] = sc
             self.steps[row] = sc.steps
             self.set_speed[row] = sc.set_speed
             self.time_gap[row] = sc.time_gap
-            self.tau1[row] = tau_cfg if tau_cfg is not None else (sc.time_gap or DEFAULT_TAU1)
+            self.declared[row] = declared[j]
+            self.tau1[row] = judged_tau1(sc.time_gap or None, declared[j], self.config.scoring)
             self.n_lanes[row] = sc.road.n_lanes
         rows_a = np.array(rows)
         state = self._lead_state()
@@ -251,7 +255,7 @@ class EpisodeBatch:
         k = int(self.world.k[row])
         rec = dict(zip(_RECORD, self._rec_arr[:, row, :k + 1].copy()))
         sc = self.scenarios[row]
-        trace = EgoTrace(**rec, set_speed=sc.set_speed, time_gap=sc.time_gap)
+        trace = EgoTrace(**rec, set_speed=sc.set_speed, time_gap=sc.time_gap, declared_time_gap=self.declared[row])
         report = score_episode(trace, self.config.scoring)
         return {"score": report.score, "qualified": report.qualified, "report": report.to_dict(),
                 "scenario": sc.id, "scenario_seed": sc.seed, "episode_return": float(self.episode_return[row])}
@@ -273,4 +277,4 @@ class EpisodeBatch:
         k = int(self.world.k[row])
         sc = self.scenarios[row]
         return EgoTrace(**{key: self._rec[key][row, :k + 1].copy() for key in _RECORD}, set_speed=sc.set_speed,
-                        time_gap=sc.time_gap)
+                        time_gap=sc.time_gap, declared_time_gap=self.declared[row])

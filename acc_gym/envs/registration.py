@@ -1,9 +1,20 @@
 """Environment ids under the ``acc_gym/`` namespace (light: imports nothing heavy).
 
-Gymnasium calls :func:`register_envs` through the ``gymnasium.envs`` entry point when it
-is imported; ``import acc_gym.envs`` does the same. Every id is the same
-:class:`~acc_gym.envs.acc_env.ACCEnv` drawing from one scenario family, with the native
-:class:`~acc_gym.envs.vector.ACCVectorEnv` as its ``vector_entry_point``.
+``import acc_gym`` registers the ids (:func:`register_envs`). Gymnasium 1.x does **not**
+load plugins through the ``gymnasium.envs`` entry point (0.26-0.29 did; the entry point
+stays for them), so a process that never imported acc_gym does not know the ids: a worker
+of SB3's ``SubprocVecEnv`` started with ``spawn`` or ``forkserver`` (the default on macOS
+and Windows, and forkserver on Linux from Python 3.14) raises ``NamespaceNotFound:
+Namespace acc_gym not found`` even though the parent imported acc_gym. Two ways that
+always work:
+
+* the module-qualified id ``"acc_gym:acc_gym/CarFollowing-v0"`` -- ``gymnasium.make``
+  imports the module before the id (:func:`qualified_id` makes it);
+* :func:`make_vec_env` -- stable-baselines3's ``make_vec_env`` with the id qualified.
+
+Every id is the same :class:`~acc_gym.envs.acc_env.ACCEnv` drawing from one scenario
+family, with the native :class:`~acc_gym.envs.vector.ACCVectorEnv` as its
+``vector_entry_point``.
 """
 
 from __future__ import annotations
@@ -24,3 +35,22 @@ def register_envs() -> None:
             continue
         register(id=env_id, entry_point="acc_gym.envs.acc_env:ACCEnv",
                  vector_entry_point="acc_gym.envs.vector:ACCVectorEnv", kwargs={"default_scenarios": family})
+
+
+def qualified_id(env_id: str) -> str:
+    """``"acc_gym:<id>"`` for one of this package's ids (any process can make it: gymnasium
+    imports ``acc_gym`` first); other ids, and ids already qualified, as given."""
+    if not isinstance(env_id, str):
+        raise TypeError(f"an environment id must be a string, got {type(env_id).__name__}")
+    return f"acc_gym:{env_id}" if env_id in ENV_IDS else env_id
+
+
+def make_vec_env(env_id: str, n_envs: int = 1, **kwargs):
+    """stable-baselines3's ``make_vec_env`` for an acc_gym id, in any vector env class and
+    start method (``vec_env_cls=SubprocVecEnv, vec_env_kwargs={"start_method": "spawn"}``):
+    the id is qualified (:func:`qualified_id`) so that every worker imports acc_gym."""
+    try:
+        from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
+    except ImportError as exc:  # pragma: no cover - the rl extra is not installed
+        raise ImportError("acc_gym.make_vec_env needs stable-baselines3: pip install 'acc-gym[rl]'") from exc
+    return sb3_make_vec_env(qualified_id(env_id), n_envs=n_envs, **kwargs)

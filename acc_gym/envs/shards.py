@@ -84,6 +84,8 @@ def _worker(conn, n: int, kwargs: dict) -> None:  # pragma: no cover - runs in t
                 out = env.reset_ended()
             elif cmd == "render":
                 out = env.render()
+            elif cmd == "episode_reports":
+                out = env.episode_reports()
             else:
                 raise ValueError(f"unknown command {cmd!r}")
             conn.send(("ok", out))

@@ -34,6 +34,7 @@ from gymnasium.vector.utils import batch_space
 from acc_gym.envs.acc_env import action_to_accel, check_actions, make_config, observation_space
 from acc_gym.envs.config import EnvConfig, ScenarioSampler
 from acc_gym.envs.core import EpisodeBatch
+from acc_gym.evaluation.scoring import score_episode
 from acc_gym.envs.reward import CriteriaReward
 from acc_gym.envs.shards import Shards, merge_infos, split
 from acc_gym.scenarios.registry import build
@@ -233,6 +234,20 @@ class ACCVectorEnv(VectorEnv):
             self._reset_rows(rows.tolist())
             self._autoreset[rows] = False
         return rows, self._obs()
+
+    def episode_reports(self) -> list:
+        """Each scene's :meth:`ACCEnv.episode_report <acc_gym.envs.acc_env.ACCEnv.episode_report>`:
+        the report of its current episode so far (None for a scene not yet stepped since its
+        reset). A scene whose episode ended on the last step holds that episode until the
+        next ``step()`` resets it (next-step autoreset), so its report then is the ended
+        episode's, as in that step's ``info["report"]``."""
+        if self._shards is not None:
+            return [r for part in self._shards.call("episode_reports") for r in part]
+        if not self._started:
+            raise RuntimeError("call reset() before episode_reports()")
+        scoring = self.config.scoring
+        return [score_episode(self.core.trace(row), scoring).to_dict() if int(self.core.world.k[row]) >= 1 else None
+                for row in range(self.num_envs)]
 
     def render(self):
         if self.render_mode is None:

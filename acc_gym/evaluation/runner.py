@@ -11,10 +11,27 @@ object, a class or a factory that makes one, or a saved model (a run directory o
 from __future__ import annotations
 
 import importlib
+import os
+import sys
 import math
 from pathlib import Path
 
 import numpy as np
+
+
+def import_from_cwd(name: str):
+    """Import ``name`` with the working directory first on the path, as ``python -m`` has it
+    (a console script such as ``acc-gym`` does not), so that ``mymod:ctrl`` finds the
+    ``mymod.py`` in the directory the command runs in."""
+    cwd = os.getcwd()
+    added = sys.path[:1] not in ([""], [cwd])
+    if added:
+        sys.path.insert(0, cwd)
+    try:
+        return importlib.import_module(name)
+    finally:
+        if added and cwd in sys.path:
+            sys.path.remove(cwd)
 
 
 def load_controller(ref):
@@ -43,7 +60,7 @@ def load_controller(ref):
                          f" (acc-gym controllers lists them), 'module:attribute' or a saved model's path")
     module_name, attr = ref.split(":", 1)
     try:
-        module = importlib.import_module(module_name)
+        module = import_from_cwd(module_name)
     except ImportError as exc:
         raise ValueError(f"controller {ref!r}: cannot import module {module_name!r} ({exc})") from None
     obj = module
@@ -56,6 +73,15 @@ def load_controller(ref):
     if not hasattr(obj, "predict"):
         raise ValueError(f"controller {ref!r} has no predict(obs, deterministic=True) method")
     return obj
+
+
+def declared_time_gap(controller) -> float | None:
+    """The time gap [s] a controller declares (its ``time_gap`` attribute) and is judged at
+    (:func:`acc_gym.evaluation.scoring.judged_tau1`), or None; ``ValueError`` naming a bad one."""
+    from acc_gym.envs.acc_env import check_time_gap
+
+    value = getattr(controller, "time_gap", None)
+    return check_time_gap(value, f"controller {controller!r}: its time_gap")
 
 
 def _action(controller, obs):
@@ -82,9 +108,13 @@ class EpisodeRun:
 
     KEYS = ("x", "v", "a", "a_des", "y", "a_y", "lead", "gap", "mode")
 
-    def __init__(self, env, *, seed: int | None = None, scenario=None, record: bool = True):
+    def __init__(self, env, *, seed: int | None = None, scenario=None, record: bool = True,
+                 time_gap: float | None = None):
         self.env, self.record, self.done, self.info = env, record, False, None
-        options = {"scenario": scenario} if scenario is not None else None
+        options = {"scenario": scenario} if scenario is not None else {}
+        if time_gap is not None:
+            options["time_gap"] = time_gap
+        options = options or None
         self.obs, _ = env.reset(seed=seed, options=options)
         self.world = env.unwrapped.core.world
         self.rows: dict[str, list] = {k: [] for k in self.KEYS}
@@ -125,7 +155,7 @@ def run_episode(env, controller, *, seed: int | None = None, scenario=None, reco
     ``record``, the whole scene as a :class:`~acc_gym.simulation.single_lane.WorldTrace`
     (for :func:`acc_gym.plotting.plot_episode`)."""
     policy = load_controller(controller)
-    run = EpisodeRun(env, seed=seed, scenario=scenario, record=record)
+    run = EpisodeRun(env, seed=seed, scenario=scenario, record=record, time_gap=declared_time_gap(policy))
     if hasattr(policy, "reset"):
         policy.reset()
     while not run.step(as_action(_action(policy, run.obs), controller)):
@@ -144,12 +174,14 @@ def evaluate(controller, env_id: str = "acc_gym/CarFollowing-v0", episodes: int 
         raise ValueError(f"episodes must be a positive integer, got {episodes!r}")
     policy = load_controller(controller)
     env = gym.make(env_id, **env_kwargs)
+    declared = declared_time_gap(policy)
+    options = None if declared is None else {"time_gap": declared}
     reports, scenarios = [], []
     try:
-        obs, info = env.reset(seed=int(seed))
+        obs, info = env.reset(seed=int(seed), options=options)
         for ep in range(int(episodes)):
             if ep:
-                obs, info = env.reset()
+                obs, info = env.reset(options=options)
             if hasattr(policy, "reset"):
                 policy.reset()
             while True:

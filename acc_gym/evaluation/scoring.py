@@ -27,6 +27,33 @@ paper 003's test, a tailgater does not -- with these rules:
   standing (speed <= ``stop_speed``) -- until Q >= 0 again. A follower that sits inside
   Gapsafe without braking (a tailgater) fails; one that brakes firmly when its leader
   stops does not. ``safety="literal"``: Q >= 0 at every sample with a vehicle ahead.
+* **Why proper response stays the default: a search** (``python benchmarks/safety_rules.py``,
+  paper 003's test at 60 / 90 / 120 km/h, seeds 100-111, 12 runs per row, share of runs
+  safe; Gipps at its declared 0.9 s). Candidates: ``literal``; ``proper-response``;
+  ``reacted-gap`` (the reaction distance ``v tau1`` only until the ego brakes, then the
+  braking distances alone must fit); proper response plus a minimum-TTC floor of 1.5 / 2 /
+  2.5 s; proper response with Q < 0 for at most 3 / 5 s even while braking:
+
+  ============  ========  ========  ========  ========  =========  =========
+  controller    literal   proper    reacted   TTC 2 s   Q<0 <=3 s  min TTC
+  ============  ========  ========  ========  ========  =========  =========
+  acc           0/0/0     1/1/1     1/1/1     1/1/1     1/1/.08    2.9-3.2 s
+  idm           1/1/.42   1/1/1     1/1/1     1/1/1     1/1/1      2.2 s
+  gipps (0.9)   1/1/1     1/1/1     1/1/1     0/0/0     1/1/1      1.5 s
+  gm            1/1/0     1/1/1     1/1/1     1/1/0     1/1/0      3.9/3.9/1.0 s
+  fuzzy         .83/0/0   1/1/1     1/1/1     1/1/.58   1/.83/0    2.7/2.5/2.2 s
+  mpc           .83/.17/0 1/1/1     1/1/1     .33/0/0   .92/.17/0  2.0/1.4/1.8 s
+  tailgater     0         0         0         0         0          collides
+  constant      0         0         0         0         0          collides
+  ============  ========  ========  ========  ========  =========  =========
+
+  Every candidate passes the linear ACC (except the 3 s cap at 120 km/h) and fails the
+  tailgater and the collider; none fails GM at 60 and 90 km/h or fuzzy at 60 km/h, because
+  there neither ever comes inside Gapsafe (literal Q >= 0 holds) nor below a 2.6 s TTC: the
+  paper's verdict on them cannot be reached by a rule on Q or TTC with these models, and
+  the stricter candidates also fail Gipps, which the paper finds safe. So the simplest rule
+  with full margins on the cases that are clear stays the default; ``literal`` remains an
+  option. (What the search changed: Gipps is now judged at its own time gap, below.)
 * **Car-following band, share of steady following** (``band="steady-share"``): the band
   judges the following *distance*, so it is checked on *car-following samples*: a vehicle
   ahead at any distance (a follower cannot escape the band by hanging back out of sensor
@@ -60,7 +87,17 @@ paper 003's test, a tailgater does not -- with these rules:
   ``steady_dv`` above the set speed. Scores of the two versions are not comparable.)
 * Because Gapsafe's steady-state value is ``v tau1``, the band ``0 < G < 0.2 Gapsafe`` in
   effect asks for a time gap between tau1 and 1.2 tau1. So ``tau1`` defaults to the
-  scenario's nominal time gap (``EgoTrace.time_gap``; 1.5 s when unknown).
+  scenario's nominal time gap (``EgoTrace.time_gap``; 1.5 s when unknown), and **a
+  controller that declares its own time gap is judged at it** (paper 003's Gapsafe takes
+  the driver's own reaction time; a Gipps driver with a 0.6 s reaction and 0.3 s safety
+  margin is judged at 0.9 s, as the paper judges it): ``EgoTrace.declared_time_gap``
+  (a controller's ``time_gap`` attribute, passed by :func:`acc_gym.evaluation.runner.run_episode`,
+  ``evaluate`` and the leaderboard) sets tau1 to ``min(max(declared, tau1_floor),
+  nominal)`` (:func:`judged_tau1`). The floor, ``tau1_floor`` = 0.8 s, is the shortest
+  time gap ISO 15622 allows an ACC to offer: a controller cannot make Gapsafe lenient by
+  declaring 0.3 s. The ceiling is the scenario's nominal gap, the longest the driver asks
+  for: declaring 3 s would otherwise make hanging back "efficient". (Changed in 0.3.0;
+  0.2.0 judged every controller at the scenario's gap, and Gipps failed there.)
 * ``b0 = b1 = 8 m/s^2``: the maximum deceleration of a passenger car on dry asphalt
   (about 0.8 g; this package's vehicle model allows 0.87 g). Equal values make Gapsafe
   ``v tau1`` in steady following, as the band's reading above assumes.
@@ -106,7 +143,8 @@ class ScoringConfig:
 
     safety: str = "proper-response"  # or "literal"
     band: str = "steady-share"  # or "literal"
-    tau1: float | None = None  # [s] ego reaction time; None: the trace's time gap, else 1.5
+    tau1: float | None = None  # [s] ego reaction time; None: judged_tau1 (declared / nominal gap, else 1.5)
+    tau1_floor: float = 0.8  # [s] a declared time gap counts at least this (ISO 15622's shortest)
     b0: float = 8.0  # [m/s^2] maximum deceleration of the vehicle ahead
     b1: float = 8.0  # [m/s^2] maximum deceleration of the ego
     response_decel: float = 2.0  # [m/s^2] braking that counts as a proper response
@@ -135,7 +173,7 @@ class ScoringConfig:
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"ScoringConfig.{f.name} must be a finite number, got {value!r}")
-            positive = f.name in ("tau1", "b0", "b1", "band_width", "a_x_comfort", "a_y_comfort", "response_decel",
+            positive = f.name in ("tau1", "tau1_floor", "b0", "b1", "band_width", "a_x_comfort", "a_y_comfort", "response_decel",
                                   "approach_decel")
             if positive and value <= 0:
                 raise ValueError(f"ScoringConfig.{f.name} must be > 0, got {value!r}")
@@ -261,12 +299,24 @@ def _proper_response_violations(t, q, seen, a, v, cfg: ScoringConfig, grace: flo
     return late & ~responding
 
 
+def judged_tau1(nominal: float | None, declared: float | None, config: ScoringConfig) -> float:
+    """The reaction time tau1 an episode is judged at [s]: the config's ``tau1`` if set;
+    else the controller's declared time gap, at least ``tau1_floor`` and at most the
+    scenario's ``nominal`` gap; else the nominal gap; else :data:`DEFAULT_TAU1`."""
+    if config.tau1 is not None:
+        return float(config.tau1)
+    base = float(nominal) if nominal is not None else DEFAULT_TAU1
+    if declared is None:
+        return base
+    return min(max(float(declared), config.tau1_floor), base)
+
+
 def score_episode(trace: EgoTrace, config: ScoringConfig | None = None) -> EpisodeReport:
     """Score one episode (paper 003 Table 3 under ``config``; defaults: module docstring)."""
     cfg = config if config is not None else ScoringConfig()
     if not isinstance(trace, EgoTrace):
         raise TypeError(f"score_episode needs an EgoTrace, got {type(trace).__name__}")
-    tau1 = cfg.tau1 if cfg.tau1 is not None else (trace.time_gap if trace.time_gap is not None else DEFAULT_TAU1)
+    tau1 = judged_tau1(trace.time_gap, trace.declared_time_gap, cfg)
     has = trace.has_lead
     d1 = np.where(has, trace.gap, np.inf)
     v0 = np.where(has, trace.v_lead, 0.0)

@@ -29,6 +29,7 @@ REQUIRED_COLUMNS = ("t", "v", "a", "gap", "v_lead")
 OPTIONAL_COLUMNS = ("a_lead", "lead_id", "a_y", "d2", "d3")
 _ARRAY_COLUMNS = REQUIRED_COLUMNS + OPTIONAL_COLUMNS
 _EMPTY = np.empty(0)  # an absent optional column, for _columns_valid
+_SCALARS = ("set_speed", "time_gap", "declared_time_gap")  # per-episode values, not columns
 
 
 @numba.njit(cache=True)
@@ -82,6 +83,7 @@ class EgoTrace:
     d3: np.ndarray | None = None  # [m] contour to the boundary line (default 0.975)
     set_speed: float | None = None  # [m/s] the ego's set speed
     time_gap: float | None = None  # [s] the scenario's nominal time gap
+    declared_time_gap: float | None = None  # [s] the controller's own, if it declares one (judged at it)
 
     def __post_init__(self) -> None:
         if self._valid_as_given():
@@ -89,7 +91,7 @@ class EgoTrace:
         n = None
         for f in fields(self):
             value = getattr(self, f.name)
-            if value is None or f.name in ("set_speed", "time_gap"):
+            if value is None or f.name in _SCALARS:
                 continue
             arr = np.asarray(value, dtype=float)
             if arr.ndim != 1:
@@ -119,7 +121,7 @@ class EgoTrace:
                              f"after {self.t[k]!r})")
         if np.any(self.v < 0):
             raise ValueError(f"trace column 'v' (ego speed) must be >= 0, got {self.v.min()!r}")
-        for name in ("set_speed", "time_gap"):
+        for name in _SCALARS:
             value = getattr(self, name)
             if value is not None and not (np.isfinite(value) and value > 0):
                 raise ValueError(f"trace {name} must be > 0, got {value!r}")
@@ -138,7 +140,7 @@ class EgoTrace:
         for c in cols:
             if c is not None and not (type(c) is np.ndarray and c.dtype == np.float64 and c.shape == (n,)):
                 return False
-        for name in ("set_speed", "time_gap"):
+        for name in _SCALARS:
             value = getattr(self, name)
             if value is not None and not (np.isfinite(value) and value > 0):
                 return False

@@ -41,9 +41,10 @@ class BatchRuns:
         self.obs = np.zeros((self.n, self.bounds[0].shape[0]), dtype=np.float32)
         self.active = np.zeros(self.n, dtype=bool)
 
-    def start(self, row: int, scenario) -> None:
-        """Start ``scenario`` in ``row`` (as ``env.reset(options={"scenario": scenario})``)."""
-        self.core.reset_rows([row], [None], [scenario])
+    def start(self, row: int, scenario, time_gap: float | None = None) -> None:
+        """Start ``scenario`` in ``row``, judged at the controller's declared ``time_gap``
+        (as ``env.reset(options={"scenario": scenario, "time_gap": time_gap})``)."""
+        self.core.reset_rows([row], [None], [scenario], [time_gap])
         self.obs[row] = self.core.observe(*self.bounds, dtype=np.float32)[row]
         self.active[row] = True
 

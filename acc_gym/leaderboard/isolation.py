@@ -162,7 +162,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
 
         ctl = ControllerProcess(reference, log_path=log_path, budget=budget, uid=uid, sandbox=sandbox)
         try:
-            protocol.recv_hello(ctl.sock, deadline_total)
+            declared = protocol.recv_hello(ctl.sock, deadline_total)  # the time gap it is judged at
         except protocol.Timeout:
             raise ControllerFailed(f"exceeded the total budget of {budget:g} s while loading (killed)") from None
         except protocol.ControllerError as exc:
@@ -191,7 +191,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
                 starts = np.zeros(batch.n, dtype=bool)
                 for row in range(batch.n):
                     active[row] = queue.pop(0)
-                    batch.start(row, jobs[active[row]].scenario)
+                    batch.start(row, jobs[active[row]].scenario, declared)
                     starts[row] = True
                 while active:
                     rows = np.array(sorted(active))
@@ -211,7 +211,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
                         on_done(active[row], info)
                         if queue:
                             active[row] = queue.pop(0)
-                            batch.start(row, jobs[active[row]].scenario)
+                            batch.start(row, jobs[active[row]].scenario, declared)
                             starts[row] = True
                         else:
                             del active[row]
@@ -227,7 +227,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
                     j = queue.pop(0)
                     job = jobs[j]
                     active[slot] = [j, EpisodeRun(env_for(slot, job.env_id), seed=job.scenario.seed,
-                                                  scenario=job.scenario, record=record), True]
+                                                  scenario=job.scenario, record=record, time_gap=declared), True]
 
             for slot in range(min(in_flight, len(queue))):
                 start(slot)

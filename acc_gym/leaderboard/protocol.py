@@ -22,6 +22,7 @@ tag        direction           then
 
 from __future__ import annotations
 
+import math
 import socket
 import struct
 import time
@@ -29,6 +30,8 @@ import time
 import numpy as np
 
 HEADER = struct.Struct("<4sII")
+TIME_GAP = struct.Struct("<d")  # the ready message's payload: the declared time gap [s], 0.0 for none
+MAX_TIME_GAP = 60.0  # [s]
 HELLO, OBS, ACT, ERR, BYE = b"ACCH", b"ACCO", b"ACCA", b"ACCE", b"ACCB"
 MAX_ROWS = 4096
 MAX_DIM = 64
@@ -109,7 +112,8 @@ def recv_actions(sock: socket.socket, n: int, deadline: float | None) -> np.ndar
     return values.astype(np.float32)
 
 
-def recv_hello(sock: socket.socket, deadline: float | None) -> None:
+def recv_hello(sock: socket.socket, deadline: float | None) -> float | None:
+    """The ready message: the time gap the controller declares [s] (None: none), checked."""
     tag, a, _ = recv_header(sock, deadline)
     if tag == ERR:
         if a > MAX_TEXT:
@@ -117,6 +121,19 @@ def recv_hello(sock: socket.socket, deadline: float | None) -> None:
         raise ControllerError(recv_exact(sock, a, deadline).decode("utf-8", "replace"))
     if tag != HELLO:
         raise ProtocolError(f"expected the ready message, got a frame tagged {tag!r}")
+    if a != TIME_GAP.size:
+        raise ProtocolError(f"a ready message of {a} bytes (expected {TIME_GAP.size})")
+    (value,) = TIME_GAP.unpack(recv_exact(sock, a, deadline))
+    if value == 0.0:
+        return None
+    if not (math.isfinite(value) and 0.0 < value <= MAX_TIME_GAP):
+        raise ProtocolError(f"declared a time gap of {value!r} s (a finite number in (0, {MAX_TIME_GAP:g}] expected)")
+    return value
+
+
+def send_hello(sock: socket.socket, time_gap: float | None) -> None:
+    """The controller's side of the ready message (its declared time gap, 0.0 for none)."""
+    send_frame(sock, HELLO, TIME_GAP.size, 0, TIME_GAP.pack(0.0 if time_gap is None else float(time_gap)))
 
 
 # -- the controller's side -----------------------------------------------------------------------

@@ -86,7 +86,9 @@ def serve(sock: socket.socket, reference: str) -> None:
             except Exception:  # noqa: BLE001  (not copyable: load it again)
                 return load_controller(reference)
 
-        protocol.send_frame(sock, protocol.HELLO)
+        from acc_gym.evaluation.runner import declared_time_gap
+
+        protocol.send_hello(sock, declared_time_gap(pristine))
         step = 0
         while True:
             batch = protocol.recv_observations(sock)
@@ -137,10 +139,12 @@ def _readable_by_others(path: str) -> bool:
 
 
 def search_path() -> list[str]:
-    """The runner's ``sys.path`` entries that exist, then its working directory (what the
-    controller imports from: a module in the directory the leaderboard is run from works)."""
+    """The runner's working directory, then its ``sys.path`` entries that exist (what the
+    controller imports from: a module in the directory the leaderboard is run from comes
+    first, as under ``python -m`` and :func:`acc_gym.evaluation.runner.import_from_cwd`)."""
+    cwd = os.getcwd()
     paths = [os.path.abspath(p) for p in sys.path if p and os.path.exists(p)]  # the sandbox has another cwd
-    return paths + [os.getcwd()] if os.getcwd() not in paths else paths
+    return [cwd] + [p for p in paths if p != cwd]
 
 
 def own_uid_possible(extra_paths=()) -> tuple[bool, str]:

@@ -40,9 +40,12 @@ class ModelController(_Policy):
     """A model of :mod:`acc_gym.drivers` as a controller. ``make(set_speed, time_gap, n)``
     returns the model for ``n`` vehicles (arrays of set speeds [m/s] and time gaps [s])."""
 
-    def __init__(self, name: str, make, accel_max: float = 3.0, decel_max: float = 8.0, dt: float = 0.2):
+    def __init__(self, name: str, make, accel_max: float = 3.0, decel_max: float = 8.0, dt: float = 0.2,
+                 time_gap: float | None = None):
         super().__init__(accel_max, decel_max)
         self.name, self.make, self.dt = name, make, dt
+        if time_gap is not None:  # a model with its own time gap declares it, and is judged at it
+            self.time_gap = float(time_gap)
         self.reset()
 
     def reset(self) -> None:
@@ -89,7 +92,15 @@ def idm(**kw) -> ModelController:
 
 
 def gipps(**kw) -> ModelController:
-    """Gipps (1981) with its default braking (-3 m/s^2 wished, -3.5 assumed for the leader)."""
+    """Gipps (1981) with its default braking (-3 m/s^2 wished, -3.5 assumed for the leader).
+
+    It keeps its own time gap, not the scenario's: its safe speed leaves a reaction time
+    ``tau`` plus the safety margin ``theta`` (0.6 + 0.3 s), so it declares ``time_gap`` =
+    0.9 s and is judged there, as paper 003 judges it (its Gapsafe takes the driver's own
+    reaction time)."""
+    p = GippsParams()
+    own = p.tau + (p.tau / 2.0 if p.theta is None else p.theta)
+    kw.setdefault("time_gap", own)
     return ModelController("gipps", lambda vs, h, n: Gipps(GippsParams(v_desired=vs), n=n), **kw)
 
 

@@ -75,7 +75,18 @@ def test_gm_reacts_after_its_reaction_time():
     brake = Observation.build(v=20.0, gap=40.0, v_lead=15.0)
     outs = [m.act(calm)[0] for _ in range(3)] + [m.act(brake)[0] for _ in range(7)]
     assert np.allclose(outs[:8], outs[0])  # still reacting to the calm scene
-    assert outs[8] == pytest.approx(12.0 * -5.0 / 40.0)
+    assert outs[8] == pytest.approx(12.0 * -5.0 / (40.0 + 4.7))  # head to head: the gap plus the car ahead
+
+
+def test_gm_divides_by_the_distance_between_the_heads():
+    """Paper 003: 'inversely proportional to the distance between the heads of the two
+    vehicles' -- the bumper gap plus the vehicle ahead's length."""
+    for length in (0.0, 4.7, 12.0):
+        m = GM(GMParams(tau=0.0, length_ahead=length, c=10.0, m=1.0, l=2.0))
+        a = m.act(Observation.build(v=20.0, gap=10.0, v_lead=17.0))[0]
+        assert a == pytest.approx(10.0 * 20.0 * -3.0 / (10.0 + length) ** 2)
+    with pytest.raises(ValueError, match="length_ahead"):
+        GMParams(length_ahead=-1.0)
 
 
 @pytest.mark.parametrize("model,s0", [(Gipps(GippsParams(s0=2.0)), 2.0), (IDM(IDMParams(s0=2.0)), 2.0)])

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import acc_gym  # noqa: F401  (registers the ids)
-from acc_gym.evaluation.scoring import score_episode
+from acc_gym.evaluation.scoring import ScoringConfig, score_episode
 from acc_gym.scenarios import build, list_scenarios
 
 CF = "acc_gym/CarFollowing-v0"
@@ -673,3 +673,27 @@ def test_human_render_mode_shows_frames_and_closes():
     finally:
         env.close()
     assert env.unwrapped._viewer is None and not plt.fignum_exists(fig.number)
+
+
+def test_a_declared_time_gap_judges_the_episode_and_bad_ones_are_named():
+    """reset(options={"time_gap": h}): the per-step Gapsafe, the violations and the final score
+    use tau1 = min(max(h, 0.8), nominal); the default (no option) is the scenario's gap."""
+    from acc_gym.evaluation.scoring import judged_tau1
+
+    cf_env = gymnasium.make(CF, drivers="idm")
+
+    sc = build("carfollowing/90", seed=3)
+    for declared in (None, 0.9, 0.3):
+        options = {"scenario": sc} if declared is None else {"scenario": sc, "time_gap": declared}
+        obs, _ = cf_env.reset(seed=0, options=options)
+        tau1 = judged_tau1(sc.time_gap, declared, ScoringConfig())
+        info = {}
+        for _ in range(40):
+            obs, _, term, trunc, info = cf_env.step(np.array([0.3], dtype=np.float32))
+        v, gap, v_rel = float(obs[0]), float(obs[2]), float(obs[3])
+        v0 = v + v_rel
+        assert info["gap_safe"] == pytest.approx(v * tau1 + v ** 2 / 16.0 - v0 ** 2 / 16.0, rel=1e-5, abs=1e-4)
+        assert cf_env.unwrapped.core.trace(0).declared_time_gap == declared
+    for bad in (float("nan"), -1.0, 0.0, "1.5", True):
+        with pytest.raises(ValueError, match=r"options\['time_gap'\].*declared time gap.*> 0"):
+            cf_env.reset(seed=0, options={"time_gap": bad})

@@ -81,3 +81,40 @@ def test_colliding_follower_does_not_qualify(reports, sid):
         assert not r.item("safety").qualified and not r.qualified
         assert not literal.qualified
 
+
+
+@pytest.fixture(scope="module")
+def gipps_runs():
+    """Gipps through the environment, as `acc-gym evaluate` drives it (its declared time gap
+    passed on), and each trace scored again at the scenario's 1.5 s."""
+    import gymnasium as gym
+
+    from acc_gym.evaluation.runner import load_controller, run_episode
+
+    env = gym.make("acc_gym/CarFollowing-v0")
+    out = {}
+    for sid in IDS:
+        for seed in SEEDS:
+            info, _ = run_episode(env, "gipps", scenario=scenarios.build(sid, seed=seed), record=False)
+            trace = env.unwrapped.core.trace(0)
+            out[sid, seed] = (info["report"], score_episode(trace, ScoringConfig(tau1=1.5)))
+    return out, load_controller("gipps")
+
+
+@pytest.mark.parametrize("sid", IDS)
+def test_gipps_is_judged_at_its_own_reaction_time(gipps_runs, sid):
+    """Paper 003 judges Gipps with its Gapsafe at the driver's own reaction time: ours declares
+    tau + theta = 0.6 + 0.3 s. There it is safe in every run; at 1.5 s -- a gap it does not
+    keep -- it fails safety in most (the verdicts of benchmarks/safety_rules.py, seeds 100-111:
+    12/12 safe at 0.9 s at every speed; at 1.5 s 0/12, 1/12 and 2/12 safe)."""
+    runs, controller = gipps_runs
+    assert controller.time_gap == pytest.approx(0.9)
+    at_own = [runs[sid, seed][0] for seed in SEEDS]
+    at_nominal = [runs[sid, seed][1] for seed in SEEDS]
+    for r in at_own:
+        assert r["tau1"] == pytest.approx(0.9)
+        assert r["items"]["safety"]["qualified"] and not r["metrics"]["collision"]
+    assert sum(r.item("safety").qualified for r in at_nominal) <= 1
+    # the band is judged at 0.9 s too: Gipps (b = -3, b_hat = -3.5) follows at 0.9 s + v / 42 s,
+    # 1.3-1.7 s here, beyond 1.2 x 0.9 s -- so it is not qualified on car following at its own gap
+    assert all(not r["items"]["car_following"]["qualified"] for r in at_own)

@@ -289,3 +289,31 @@ def test_config_from_dict_rejects_misspelt_keys():
     with pytest.raises(ValueError, match="tau"):
         ScoringConfig.from_dict({"tau": 1.2})
     assert ScoringConfig.from_dict(ScoringConfig.literal().to_dict()) == ScoringConfig.literal()
+
+
+def test_a_declared_time_gap_is_judged_floored_and_capped():
+    """tau1 = min(max(declared, 0.8 s), nominal): by hand for each branch, and in Gapsafe."""
+    from acc_gym.evaluation.scoring import judged_tau1
+
+    cfg = ScoringConfig()
+    assert judged_tau1(1.5, None, cfg) == 1.5  # nothing declared: the scenario's gap
+    assert judged_tau1(None, None, cfg) == 1.5  # nothing known: DEFAULT_TAU1
+    assert judged_tau1(1.5, 0.9, cfg) == 0.9  # Gipps's reaction time
+    assert judged_tau1(1.5, 0.3, cfg) == 0.8  # ISO 15622's shortest gap: no lenient Gapsafe by declaring
+    assert judged_tau1(1.5, 3.0, cfg) == 1.5  # not longer than the driver asked: no "efficient" hanging back
+    assert judged_tau1(1.5, 0.3, ScoringConfig(tau1_floor=0.5)) == 0.5
+    assert judged_tau1(1.5, 0.9, ScoringConfig(tau1=1.2)) == 1.2  # an explicit tau1 wins
+    n = 50
+    t = np.arange(n) * 0.2
+    v = np.full(n, 20.0)
+    for declared, gap, safe in ((None, 25.0, False), (1.0, 25.0, True), (0.3, 15.0, False)):
+        tr = EgoTrace(t=t, v=v, a=np.zeros(n), gap=np.full(n, gap), v_lead=v.copy(), set_speed=25.0,
+                      time_gap=1.5, declared_time_gap=declared)
+        r = score_episode(tr)
+        assert r.tau1 == judged_tau1(1.5, declared, ScoringConfig())
+        # steady following at 20 m/s, gap 25 m: Q = 25 - 20 tau1 (>= 0 at tau1 = 1.0, < 0 at 1.5); 15 m < 0.8 x 20
+        assert r.item("safety").qualified == safe
+    with pytest.raises(ValueError, match="declared_time_gap must be > 0"):
+        EgoTrace(t=t, v=v, a=np.zeros(n), gap=np.full(n, 25.0), v_lead=v.copy(), declared_time_gap=-1.0)
+    with pytest.raises(ValueError, match="tau1_floor must be > 0"):
+        ScoringConfig(tau1_floor=0.0)

@@ -51,3 +51,12 @@ class Brakes:
 
     def predict(self, obs, deterministic=True):
         return np.array([-0.1], dtype=np.float32), None
+
+
+class BadTimeGap:
+    """Declares a time gap that is not one."""
+
+    time_gap = float("nan")
+
+    def predict(self, obs, deterministic=True):
+        return np.zeros(1, dtype=np.float32), None

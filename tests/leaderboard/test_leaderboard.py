@@ -109,6 +109,7 @@ def test_failing_controllers_are_reported_and_the_others_finish():
            "bad_controllers:Hangs": "step budget of 1.5 s",
            "bad_controllers:ReturnsNaN": "NaN",
            "bad_controllers:WrongShape": "shape",
+           "bad_controllers:BadTimeGap": "its time_gap (the controller's declared time gap) must be a finite number",
            "no_such_module_xyz:Thing": "no_such_module_xyz"}
     r = run_leaderboard("ncap-v1", "test", ["acc", *bad, "idm"], episodes=3, workers=2, step_budget=1.5,
                         budget=120)
