@@ -204,8 +204,11 @@ def _main(argv=None) -> int:
     p_demo.add_argument("--json", action="store_true", help="print one JSON object")
     p_eval = sub.add_parser("evaluate", help="score a controller over episodes of an environment")
     p_eval.add_argument("controller", help="a built-in name (acc, cacc, mp-cacc, idm, gipps, gm, fuzzy, mpc, "
-                                           "constant), the shipped policy ppo-acc, module:attribute or a "
-                                           "run directory of acc-gym train")
+                                           "constant), the shipped policy ppo-acc, module:attribute, a "
+                                           "run directory of acc-gym train, a stable-baselines3 model file "
+                                           "or an rl-zoo3 run folder")
+    p_eval.add_argument("--algo", default=None, help="the algorithm of a stable-baselines3 model file or rl-zoo3 "
+                                                     "folder (ppo, a2c, sac, td3, ddpg; default: read from the file)")
     p_eval.add_argument("--env", default="acc_gym/CarFollowing-v0", help="an environment id")
     p_eval.add_argument("--episodes", type=int, default=10)
     p_eval.add_argument("--seed", type=int, default=0)
@@ -267,7 +270,17 @@ def _main(argv=None) -> int:
 
         kwargs = {} if args.drivers is None else {"drivers": args.drivers}
         try:
-            summary = evaluate(args.controller, args.env, args.episodes, args.seed, **kwargs)
+            controller = args.controller
+            if args.algo is not None:  # a model file or folder of the user's own tooling, algorithm given
+                try:
+                    from acc_gym_agents.rl.foreign import load_foreign
+                except ImportError:
+                    parser.error("--algo needs the acc_gym_agents package (installed with acc-gym)")
+                controller = load_foreign(args.controller, algo=args.algo)
+                if controller is None:
+                    parser.error(f"--algo: {args.controller!r} is not a stable-baselines3 model file or an rl-zoo3 "
+                                 f"run folder")
+            summary = evaluate(controller, args.env, args.episodes, args.seed, **kwargs)
         except (ValueError, TypeError) as exc:
             parser.error(str(exc))
         if args.json:

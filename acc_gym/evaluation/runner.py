@@ -52,8 +52,9 @@ def load_controller(ref):
             raise ValueError(f"controller {ref!r}: no such file or directory")
         saved = controllers.load_saved(ref)
         if saved is None:
-            raise ValueError(f"controller {ref!r}: not a run directory written by `acc-gym train` (no manifest.json) "
-                             f"and no installed loader ({controllers.LOADER_GROUP}) opens it")
+            raise ValueError(f"controller {ref!r}: not a run directory written by `acc-gym train` (no manifest.json), "
+                             f"a stable-baselines3 model file or an rl-zoo3 run folder, and no installed loader "
+                             f"({controllers.LOADER_GROUP}) opens it")
         return saved
     if ":" not in ref:
         raise ValueError(f"unknown controller {ref!r}: use a registered name {sorted(controllers.registered_controllers())}"

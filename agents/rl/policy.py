@@ -113,9 +113,15 @@ def load_policy(path, backend: str | None = None) -> SB3Policy:
 
 
 def load_run(path):
-    """A run directory of ``acc-gym train`` (or its ``model.zip``) as a controller, or None
-    when ``path`` is neither (the ``acc_gym.controller_loaders`` entry point)."""
+    """A saved model as a controller (the ``acc_gym.controller_loaders`` entry point): a run
+    directory of ``acc-gym train`` or its ``model.zip``; else any stable-baselines3 model
+    file or rl-zoo3 run folder (:mod:`acc_gym_agents.rl.foreign`); None when ``path`` is
+    none of these."""
     p = Path(path)
-    if not ((p.is_dir() and (p / MANIFEST_FILE).is_file()) or (p.suffix == ".zip" and p.is_file())):
-        return None
-    return load_policy(p)
+    ours = (p.is_dir() and (p / MANIFEST_FILE).is_file()) or \
+        (p.suffix == ".zip" and p.is_file() and (p.parent / MANIFEST_FILE).is_file())
+    if ours:
+        return load_policy(p)
+    from acc_gym_agents.rl.foreign import load_foreign
+
+    return load_foreign(p)

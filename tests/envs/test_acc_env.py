@@ -690,7 +690,7 @@ def test_a_declared_time_gap_judges_the_episode_and_bad_ones_are_named():
         info = {}
         for _ in range(40):
             obs, _, term, trunc, info = cf_env.step(np.array([0.3], dtype=np.float32))
-        v, gap, v_rel = float(obs[0]), float(obs[2]), float(obs[3])
+        v, v_rel = float(obs[0]), float(obs[3])
         v0 = v + v_rel
         assert info["gap_safe"] == pytest.approx(v * tau1 + v ** 2 / 16.0 - v0 ** 2 / 16.0, rel=1e-5, abs=1e-4)
         assert cf_env.unwrapped.core.trace(0).declared_time_gap == declared

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from acc_gym.drivers.baselines import IDM, IDMParams
-from acc_gym.scenarios import build, list_scenarios, scenario_type, simulate
+from acc_gym.scenarios import build, list_scenarios, simulate
 from acc_gym.scenarios.singlelane import EGO_LANE, MERGE_LANE, SIDE_LANE, entry_gap
 
 SINGLE = list_scenarios("singlelane")
