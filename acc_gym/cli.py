@@ -272,11 +272,9 @@ def _main(argv=None) -> int:
         try:
             controller = args.controller
             if args.algo is not None:  # a model file or folder of the user's own tooling, algorithm given
-                try:
-                    from acc_gym_agents.rl.foreign import load_foreign
-                except ImportError:
-                    parser.error("--algo needs the acc_gym_agents package (installed with acc-gym)")
-                controller = load_foreign(args.controller, algo=args.algo)
+                from acc_gym.controllers import load_saved
+
+                controller = load_saved(args.controller, algo=args.algo)
                 if controller is None:
                     parser.error(f"--algo: {args.controller!r} is not a stable-baselines3 model file or an rl-zoo3 "
                                  f"run folder")

@@ -105,12 +105,13 @@ def make_controller(name: str):
     return obj
 
 
-def load_saved(path: str):
-    """A saved model at ``path`` through the installed loaders (None if none claims it)."""
+def load_saved(path: str, **options):
+    """A saved model at ``path`` through the installed loaders (None if none claims it).
+    ``options`` (e.g. ``algo="sac"``) go to every loader, which must then accept them."""
     for name, eps in sorted(_entry_points(LOADER_GROUP).items()):
         for ep in eps:
             loader = ep.load()
-            controller = loader(path)
+            controller = loader(path, **options)
             if controller is not None:
                 return controller
     return None

@@ -26,6 +26,7 @@ step, which is exactly their update rule when ``tau`` is a multiple of ``dt``. E
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -376,16 +377,26 @@ class Tyler(_Model):
 
 @dataclass(frozen=True)
 class IDMParams:
+    """IDM's parameters. **The time headway is** ``time_gap`` (IDM's T; SUMO calls it
+    ``tau``); ``tau`` here is a *reaction delay* (IDM has none), as for every model of this
+    module. Passing ``tau=1.5`` meaning the headway gives a follower that perceives 1.5 s
+    late and keeps the default 1.5 s headway -- it crashes -- so a ``tau`` of 0.5 s or more
+    with ``time_gap`` left at its default warns."""
+
     a: float | np.ndarray = 1.5  # [m/s^2] maximum acceleration
     b: float | np.ndarray = 2.0  # [m/s^2] comfortable deceleration (> 0, IDM's convention)
-    time_gap: float | np.ndarray = 1.5  # [s] T
+    time_gap: float | np.ndarray = 1.5  # [s] T, the time headway (SUMO's tau)
     s0: float | np.ndarray = 2.0  # [m] standstill gap
     v_desired: float | np.ndarray = 25.0  # [m/s] v0
     delta: float | np.ndarray = 4.0  # acceleration exponent
-    tau: float | np.ndarray = 0.0  # [s] perception delay (IDM has none; for experiments)
+    tau: float | np.ndarray = 0.0  # [s] perception DELAY, not the headway (IDM has none; for experiments)
 
     def __post_init__(self):
         _validate(self, positive=("a", "b", "v_desired", "delta"), nonnegative=("time_gap", "s0", "tau"))
+        if np.any(np.asarray(self.tau) >= 0.5) and np.all(np.asarray(self.time_gap) == 1.5):
+            warnings.warn(f"IDMParams(tau={self.tau!r}) is a reaction delay, not IDM's time headway (that is "
+                          f"time_gap, left at 1.5 s): did you mean time_gap={self.tau!r}? (SUMO's tau is the "
+                          f"headway)", UserWarning, stacklevel=3)
 
 
 class IDM(_Model):

@@ -111,6 +111,19 @@ class SlotDrivers:
         return self._all_mpc_cached
 
     # ------------------------------------------------------------------ step
+    def _idle_rows_cruising(self, obs: Observation, idle: np.ndarray) -> Observation:
+        """The observation the batched MPC driver gets: rows without an MPC driver (an absent
+        vehicle, a scripted profile, a baseline model) see a steady cruise at their row's
+        desired speed with nothing ahead -- a state whose plan is the unconstrained law,
+        solved in the kernel without a QP -- instead of the parked vehicle an absent slot
+        holds (a standing start with an open road: a backend QP solve every step). Their
+        output is discarded, and a row that gets an MPC driver is restarted by
+        :meth:`MPCDriver.set_params <acc_gym.drivers.mpc.MPCDriver.set_params>`, so no
+        present vehicle's numbers change (rows of the batch do not interact)."""
+        if not np.any(idle):
+            return obs
+        return _cruise_state(obs, idle, self._mpc.params.v_desired)
+
     def act_rows(self, rows: np.ndarray) -> np.ndarray:
         """:meth:`act` for an observation given as rows of one float64 array (see
         :meth:`MPCDriver.act_rows <acc_gym.drivers.mpc.MPCDriver.act_rows>`): when every
@@ -136,8 +149,8 @@ class SlotDrivers:
         out = np.zeros(self.n)
         mode = np.full(self.n, -1, dtype=np.int64)
         if self._mpc is not None and np.any(self.kind == 1):
-            a = self._mpc.act(obs)
             is_mpc = self.kind == 1
+            a = self._mpc.act(self._idle_rows_cruising(obs, ~is_mpc))
             out[is_mpc] = a[is_mpc]
             mode[is_mpc] = self._mpc.mode[is_mpc]
             self.fallbacks[is_mpc] = self._mpc.stats_column("fallback")[is_mpc]
@@ -151,6 +164,23 @@ class SlotDrivers:
         self._clock += 1
         self.info = {"mode": mode}
         return out
+
+
+def _cruise_state(obs: Observation, idle: np.ndarray, v_desired: np.ndarray) -> Observation:
+    """``obs`` with the ``idle`` rows replaced by a steady cruise at ``v_desired`` with
+    nothing ahead."""
+    cruise = {"v": v_desired, "a": 0.0, "gap": np.inf, "v_lead": 0.0, "a_lead": 0.0, "gap2": np.inf, "v_lead2": 0.0,
+              "a_lead2": 0.0, "stop_gap": np.inf}
+    fields = {}
+    for name, value in cruise.items():
+        given = getattr(obs, name)
+        if given is None:
+            fields[name] = None
+            continue
+        arr = np.array(given, dtype=float, copy=True)
+        arr[idle] = value[idle] if isinstance(value, np.ndarray) else value
+        fields[name] = arr
+    return Observation(**fields)
 
 
 class SlotView:

@@ -66,12 +66,14 @@ def check_actions(actions, shape: tuple) -> np.ndarray:
             return a
     if actions is None:
         raise ValueError(f"action must be numeric with shape {shape}, got None")
+    raw = np.asarray(actions)
+    if raw.dtype.kind not in "fiu":  # no text ("0.5"), booleans or complex numbers passed as numbers
+        raise ValueError(f"action must be numeric: real numbers (floats or integers) with shape {shape}, got {actions!r} "
+                         f"({raw.dtype})")
     try:
-        a = np.asarray(actions, dtype=float)
+        a = raw.astype(float)
     except (TypeError, ValueError):
         raise ValueError(f"action must be numeric with shape {shape}, got {actions!r}") from None
-    if a.dtype == object:
-        raise ValueError(f"action must be numeric with shape {shape}, got {actions!r}")
     if a.shape != shape and a.size == int(np.prod(shape)) and a.ndim <= len(shape):
         a = a.reshape(shape)
     if a.shape != shape:

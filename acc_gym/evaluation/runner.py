@@ -92,11 +92,22 @@ def _action(controller, obs):
 
 def as_action(out, controller=None) -> np.ndarray:
     """A controller's answer (``predict``'s action) as the env's ``(1,)`` float32 action;
-    ``ValueError`` naming the shape otherwise."""
-    action = np.asarray(out, dtype=np.float32)
-    if action.shape not in ((1,), ()):
-        raise ValueError(f"controller {controller!r} returned an action of shape {action.shape}; expected (1,)")
-    return action.reshape(1)
+    ``ValueError`` naming the value otherwise: no action (None), not a real number (text,
+    a boolean, a complex number), a wrong shape, NaN or infinite. A finite action beyond
+    [-1, 1] is clipped first, as the env clips it (so ``1e300`` is +1, not float32's
+    overflow to infinity)."""
+    if out is None:
+        raise ValueError(f"controller {controller!r} returned no action (None); expected shape (1,)")
+    raw = np.asarray(out)
+    if raw.dtype.kind not in "fiu":
+        raise ValueError(f"controller {controller!r} returned {out!r} ({raw.dtype}); an action is a real number")
+    if raw.shape not in ((1,), ()):
+        raise ValueError(f"controller {controller!r} returned an action of shape {raw.shape}; expected (1,)")
+    value = raw.astype(np.float64).reshape(1)
+    if not np.isfinite(value[0]):
+        what = "NaN" if np.isnan(value[0]) else "infinite"
+        raise ValueError(f"controller {controller!r} returned an action that is {what}: {out!r}")
+    return np.clip(value, -1.0, 1.0).astype(np.float32)
 
 
 class EpisodeRun:

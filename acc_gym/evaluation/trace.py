@@ -15,6 +15,7 @@ the columns ``t, v, a, gap, v_lead`` (optional ``a_lead, lead_id, a_y, d2, d3``)
 from __future__ import annotations
 
 import csv
+import re
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -111,16 +112,18 @@ class EgoTrace:
                 if not np.all(np.isfinite(arr)):
                     raise ValueError("trace column 'v_lead' must be finite where a vehicle is ahead")
             elif not np.all(np.isfinite(arr)):
-                raise ValueError(f"trace column {f.name!r} must be finite, got {arr[~np.isfinite(arr)][:3]}")
+                k = int(np.flatnonzero(~np.isfinite(arr))[0])
+                raise ValueError(f"trace column {f.name!r} must be finite, got {float(arr[k])!r} at sample {k}")
             object.__setattr__(self, f.name, arr)
         if n is None or n < 2:
             raise ValueError(f"a trace needs at least 2 samples, got {n}")
         if np.any(np.diff(self.t) <= 0):
             k = int(np.flatnonzero(np.diff(self.t) <= 0)[0])
-            raise ValueError(f"trace column 't' must be strictly increasing (sample {k + 1}: {self.t[k + 1]!r} "
-                             f"after {self.t[k]!r})")
+            raise ValueError(f"trace column 't' must be strictly increasing (sample {k + 1}: {float(self.t[k + 1])!r} "
+                             f"after {float(self.t[k])!r})")
         if np.any(self.v < 0):
-            raise ValueError(f"trace column 'v' (ego speed) must be >= 0, got {self.v.min()!r}")
+            raise ValueError(f"trace column 'v' (ego speed) must be >= 0, got {float(self.v.min())!r} at sample "
+                             f"{int(np.argmin(self.v))}")
         for name in _SCALARS:
             value = getattr(self, name)
             if value is not None and not (np.isfinite(value) and value > 0):
@@ -189,7 +192,22 @@ class EgoTrace:
     def from_csv(cls, path, set_speed: float | None = None, time_gap: float | None = None) -> "EgoTrace":
         """Read a CSV trace (see the module docstring)."""
         path = Path(path)
-        with path.open(newline="") as fh:
+        try:
+            return cls._from_csv(path, set_speed, time_gap)
+        except UnicodeDecodeError as exc:
+            raise ValueError(f"{path}: not UTF-8 text (byte {exc.start}: {exc.reason})") from None
+        except ValueError as exc:
+            text = str(exc)
+            if text.startswith(str(path)):
+                raise
+            # a check of the whole trace: name the file, and the CSV line of a sample (header = line 1)
+            text = re.sub(r"sample (\d+)", lambda m: f"sample {m.group(1)} (line {int(m.group(1)) + 2})", text)
+            raise ValueError(f"{path}: {text}") from None
+
+    @classmethod
+    def _from_csv(cls, path: Path, set_speed, time_gap) -> "EgoTrace":
+        # utf-8-sig: a byte-order mark (what spreadsheet programs write) is not part of the first column's name
+        with path.open(newline="", encoding="utf-8-sig") as fh:
             reader = csv.DictReader(fh)
             header = [h.strip() for h in (reader.fieldnames or [])]
             missing = [c for c in REQUIRED_COLUMNS if c not in header]

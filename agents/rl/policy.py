@@ -112,11 +112,12 @@ def load_policy(path, backend: str | None = None) -> SB3Policy:
                      max_overspeed=manifest.get("max_overspeed"))
 
 
-def load_run(path):
+def load_run(path, algo: str | None = None):
     """A saved model as a controller (the ``acc_gym.controller_loaders`` entry point): a run
     directory of ``acc-gym train`` or its ``model.zip``; else any stable-baselines3 model
     file or rl-zoo3 run folder (:mod:`acc_gym_agents.rl.foreign`); None when ``path`` is
-    none of these."""
+    none of these. ``algo`` names the algorithm of a foreign model (read from the file when
+    omitted)."""
     p = Path(path)
     ours = (p.is_dir() and (p / MANIFEST_FILE).is_file()) or \
         (p.suffix == ".zip" and p.is_file() and (p.parent / MANIFEST_FILE).is_file())
@@ -124,4 +125,4 @@ def load_run(path):
         return load_policy(p)
     from acc_gym_agents.rl.foreign import load_foreign
 
-    return load_foreign(p)
+    return load_foreign(p, algo=algo)

@@ -124,3 +124,14 @@ def test_model_rejects_bad_observations():
         IDM().act(Observation.build(v=np.nan, gap=10.0, v_lead=10.0))
     with pytest.raises(ValueError, match="shape"):
         IDM(n=2).act(Observation.build(v=[1.0, 2.0, 3.0], gap=10.0, v_lead=10.0))
+
+
+def test_idm_tau_is_a_delay_and_mistaking_it_for_the_headway_warns():
+    with pytest.warns(UserWarning, match=r"reaction delay, not IDM's time headway.*time_gap=1.5"):
+        IDMParams(tau=1.5)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        IDMParams(tau=0.2)  # a small delay: no warning
+        IDMParams(tau=1.0, time_gap=1.2)  # both given: meant

@@ -137,3 +137,35 @@ def test_v_lead_without_a_vehicle_ahead_is_zeroed_as_before():
     trace = EgoTrace(**cols)
     assert trace.v_lead[3] == 0.0 and np.signbit(trace.v_lead[4]) == np.False_
     assert trace.v_lead is not cols["v_lead"]  # the checks replaced the column
+
+
+def test_a_csv_with_a_byte_order_mark_reads(tmp_path):
+    """Spreadsheet programs start UTF-8 CSV files with a byte-order mark."""
+    body = "t,v,a,gap,v_lead\n" + "".join(f"{0.2 * k:.1f},20,0,30,20\n" for k in range(10))
+    plain, bom = tmp_path / "plain.csv", tmp_path / "bom.csv"
+    plain.write_text(body, encoding="utf-8")
+    bom.write_bytes(b"\xef\xbb\xbf" + body.encode())
+    a, b = EgoTrace.from_csv(plain), EgoTrace.from_csv(bom)
+    assert np.array_equal(a.t, b.t) and np.array_equal(a.v, b.v)
+
+
+@pytest.mark.parametrize("body,words", [
+    ("t,v,a,gap,v_lead\n0,1,0,5,1\n0.2,inf,0,5,1\n0.4,1,0,5,1\n", r"'v' must be finite, got inf at sample 1 \(line 3\)"),
+    ("t,v,a,gap,v_lead\n0,1,0,5,1\n0.4,1,0,5,1\n0.2,1,0,5,1\n", r"'t' must be strictly increasing \(sample 2 \(line 4\): "
+                                                                 r"0.2 after 0.4\)"),
+    ("t,v,a,gap,v_lead\n0,1,0,5,1\n0.2,-3,0,5,1\n", r"must be >= 0, got -3.0 at sample 1 \(line 3\)"),
+    ("t,v,a,gap,v_lead\n0,1,0,5,1\n", "at least 2 samples"),
+])
+def test_whole_trace_errors_name_the_file_and_the_line(tmp_path, body, words):
+    path = tmp_path / "drive.csv"
+    path.write_text(body)
+    with pytest.raises(ValueError, match=words) as err:
+        EgoTrace.from_csv(path)
+    assert str(err.value).startswith(str(path)) and "np.float64" not in str(err.value)
+
+
+def test_a_csv_that_is_not_utf8_is_named(tmp_path):
+    path = tmp_path / "latin1.csv"
+    path.write_bytes("t,v,a,gap,v_lead\n0,1,0,5,1\n0.2,1,0,5,1 \xe9\n".encode("latin-1"))
+    with pytest.raises(ValueError, match=r"latin1\.csv: not UTF-8 text \(byte \d+"):
+        EgoTrace.from_csv(path)
