@@ -48,3 +48,14 @@ def test_reproducibility_json_keys():
     assert out["episodes"] == 8 and out["trials"] == 1 and out["controller"] == "acc"
     assert 0.0 <= out["median_score_change"] <= out["max_score_change"] <= out["score_tolerance"]
     assert out["verdicts_changed"] == 0 and out["max_speed_change"] < 1e-6
+
+
+def test_bench_ids_json_keys():
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_ids.py"), "--json", "--repeats", "1",
+                        "--steps", "50", "--vector-steps", "3", "--num-envs", "4"], capture_output=True, text=True,
+                       check=True, cwd=ROOT)
+    out = json.loads(r.stdout)
+    for env_id in ("acc_gym/SingleLane-v0", "acc_gym/CarFollowing-v0", "acc_gym/NCAP-v0"):
+        for key in ("single_steps_per_s", "vector_steps_per_s"):
+            e = out[f"{env_id} {key}"]
+            assert e["this"] > 0 and len(e["runs"]) == 1
