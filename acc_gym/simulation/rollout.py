@@ -135,7 +135,9 @@ def simulate_column(lead: SpeedProfile, followers, x0, v0, *, duration: float | 
     g = gaps_of(x)
     record(0, x, v, a, g)
     t = np.arange(T + 1) * dt
-    prof_next = lead.speed(t[1:] + 0.0)  # (T,) or (B, T)
+    # the profile's own clock: step k is its time times[0] + k dt (a profile that starts at t0 = 10 s
+    # brakes at its own 10 + 5 s, as ProfileDriver plays it), and the duration runs from there
+    prof_next = lead.speed(float(lead.times[0]) + t[1:])  # (T,) or (B, T)
     if prof_next.ndim == 1:
         prof_next = np.broadcast_to(prof_next, (B, T))
     a_des = np.zeros((B, n))
