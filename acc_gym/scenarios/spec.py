@@ -33,18 +33,34 @@ ROLES = ("SV", "POV", "POV2")
 DRIVER_MODELS = ("mpc", "profile", *sorted(MODELS))
 
 
-def _finite(name: str, value, *, positive=False, nonnegative=False) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
+# Physical bounds of a scenario's values (decided here; the limit is in each message):
+MAX_DURATION = 7200.0  # [s] two hours: the env allocates the episode's record at reset
+MAX_SPEED = 70.0  # [m/s] 252 km/h: initial speeds, profile speeds, the set speed (the observation's bound)
+MAX_TIME_GAP = 10.0  # [s]
+_NUMBER = (int, float, np.integer, np.floating)
+
+
+def _finite(name: str, value, *, positive=False, nonnegative=False, at_most: float | None = None) -> float:
+    """``value`` as a float: a real number (not a bool, not text), finite, within the bounds."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, _NUMBER):
+        raise ValueError(f"{name} must be a number, got {value!r} ({type(value).__name__})")
+    x = float(value)
     if not math.isfinite(x):
         raise ValueError(f"{name} must be finite, got {value!r}")
     if positive and x <= 0:
         raise ValueError(f"{name} must be > 0, got {value!r}")
     if nonnegative and x < 0:
         raise ValueError(f"{name} must be >= 0, got {value!r}")
+    if at_most is not None and x > at_most:
+        raise ValueError(f"{name} must be at most {at_most:g}, got {value!r}")
     return x
+
+
+def _integer(name: str, value, minimum: int = 0) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < minimum:
+        what = "a non-negative integer" if minimum == 0 else f"an integer >= {minimum}"
+        raise ValueError(f"{name} must be {what}, got {value!r}")
+    return int(value)
 
 
 def _exact_keys(name: str, data, required: set, optional: set = frozenset()) -> None:
@@ -70,13 +86,17 @@ class DriverSpec:
     def __post_init__(self) -> None:
         if self.model not in DRIVER_MODELS:
             raise ValueError(f"unknown driver model {self.model!r}; known: {list(DRIVER_MODELS)}")
-        params = {str(k): _finite(f"driver params[{k!r}]", v) for k, v in dict(self.params).items()}
+        if not isinstance(self.params, dict):
+            raise ValueError(f"driver params must be a JSON object, got {type(self.params).__name__}")
+        params = {str(k): _finite(f"driver params[{k!r}]", v) for k, v in self.params.items()}
+        if self.model == "profile" and params:
+            raise ValueError(f"a 'profile' driver takes no parameters, got {sorted(params)}")
         object.__setattr__(self, "params", params)
         if self.model == "profile":
             if self.times is None or self.speeds is None:
                 raise ValueError("a 'profile' driver needs times and speeds")
             t = tuple(_finite("profile time", v) for v in self.times)
-            s = tuple(_finite("profile speed", v, nonnegative=True) for v in self.speeds)
+            s = tuple(_finite("profile speed", v, nonnegative=True, at_most=MAX_SPEED) for v in self.speeds)
             SpeedProfile(np.array(t), np.array(s))  # validates ordering and lengths
             object.__setattr__(self, "times", t)
             object.__setattr__(self, "speeds", s)
@@ -157,12 +177,11 @@ class VehicleSpec:
         if self.role not in ROLES:
             raise ValueError(f"unknown vehicle role {self.role!r}; use one of {ROLES}")
         object.__setattr__(self, "x0", _finite(f"{self.role}.x0", self.x0))
-        object.__setattr__(self, "v0", _finite(f"{self.role}.v0 (initial speed)", self.v0, nonnegative=True))
+        object.__setattr__(self, "v0", _finite(f"{self.role}.v0 (initial speed)", self.v0, nonnegative=True,
+                                               at_most=MAX_SPEED))
         object.__setattr__(self, "length", _finite(f"{self.role}.length", self.length, positive=True))
         object.__setattr__(self, "width", _finite(f"{self.role}.width", self.width, positive=True))
-        if int(self.lane) != self.lane or self.lane < 0:
-            raise ValueError(f"{self.role}.lane must be a lane index >= 0, got {self.lane!r}")
-        object.__setattr__(self, "lane", int(self.lane))
+        object.__setattr__(self, "lane", _integer(f"{self.role}.lane (a lane index)", self.lane))
         if self.role == "SV" and self.driver is not None:
             raise ValueError("the SV (ego) is driven by the controller under test; give it no driver")
         if self.role != "SV" and self.driver is None:
@@ -205,28 +224,40 @@ class Scenario:
     def __post_init__(self) -> None:
         if not isinstance(self.id, str) or not self.id:
             raise ValueError(f"Scenario.id must be a non-empty string, got {self.id!r}")
-        if int(self.seed) != self.seed or self.seed < 0:
-            raise ValueError(f"Scenario.seed must be a non-negative integer, got {self.seed!r}")
-        object.__setattr__(self, "seed", int(self.seed))
+        object.__setattr__(self, "seed", _integer("Scenario.seed", self.seed))
+        if not isinstance(self.params, dict):
+            raise ValueError(f"Scenario.params must be a JSON object, got {type(self.params).__name__}")
         object.__setattr__(self, "params", {str(k): _finite(f"Scenario.params[{k!r}]", v)
-                                            for k, v in dict(self.params).items()})
+                                            for k, v in self.params.items()})
+        if not isinstance(self.drivers, str):
+            raise ValueError(f"Scenario.drivers must be a string, got {self.drivers!r}")
         object.__setattr__(self, "vehicles", tuple(self.vehicles))
         if not self.vehicles or self.vehicles[0].role != "SV":
             raise ValueError("Scenario.vehicles must start with the SV (ego)")
         roles = [v.role for v in self.vehicles]
         if len(set(roles)) != len(roles):
             raise ValueError(f"Scenario.vehicles has repeated roles {roles}")
-        object.__setattr__(self, "duration", _finite("Scenario.duration", self.duration, positive=True))
-        object.__setattr__(self, "set_speed", _finite("Scenario.set_speed", self.set_speed, positive=True))
-        object.__setattr__(self, "time_gap", _finite("Scenario.time_gap", self.time_gap, positive=True))
-        object.__setattr__(self, "dt", _finite("Scenario.dt", self.dt, positive=True))
-        if self.schema_version != SCHEMA_VERSION:
+        object.__setattr__(self, "dt", _finite("Scenario.dt", self.dt, positive=True, at_most=1.0))
+        duration = _finite("Scenario.duration", self.duration, positive=True, at_most=MAX_DURATION)
+        if duration < 2 * self.dt:
+            raise ValueError(f"Scenario.duration must be at least two steps ({2 * self.dt:g} s), got {self.duration!r}")
+        object.__setattr__(self, "duration", duration)
+        object.__setattr__(self, "set_speed", _finite("Scenario.set_speed", self.set_speed, positive=True,
+                                                      at_most=MAX_SPEED))
+        object.__setattr__(self, "time_gap", _finite("Scenario.time_gap", self.time_gap, positive=True,
+                                                     at_most=MAX_TIME_GAP))
+        if type(self.schema_version) is not int or self.schema_version != SCHEMA_VERSION:
             raise ValueError(f"Scenario.schema_version {self.schema_version!r} is not supported "
                              f"(this version of acc_gym reads {SCHEMA_VERSION})")
+        ego = self.vehicles[0]
         for v in self.vehicles:
             lanes = [v.lane] + ([v.lane_change.to_lane] if v.lane_change else [])
             if max(lanes) >= self.road.n_lanes:
                 raise ValueError(f"{v.role} uses lane {max(lanes)} but the road has {self.road.n_lanes} lane(s)")
+            if v is not ego and v.lane == ego.lane and v.lane_change is None and v.x0 - v.length <= ego.x0:
+                raise ValueError(f"{v.role} starts behind or overlapping the ego in its lane (x0 {v.x0:g} m, rear "
+                                 f"{v.x0 - v.length:g} m, ego front {ego.x0:g} m): it would run into the ego, which "
+                                 f"would be blamed")
 
     @property
     def steps(self) -> int:
@@ -274,12 +305,14 @@ class Scenario:
     def from_dict(cls, d) -> "Scenario":
         _exact_keys("scenario", d, {"schema_version", "id", "seed", "params", "duration", "dt", "set_speed",
                                     "time_gap", "road", "drivers", "description", "vehicles"})
-        if d["schema_version"] != SCHEMA_VERSION:
+        if type(d["schema_version"]) is not int or d["schema_version"] != SCHEMA_VERSION:
             raise ValueError(f"scenario schema_version {d['schema_version']!r} is not supported "
-                             f"(this version of acc_gym reads {SCHEMA_VERSION})")
+                             f"(this version of acc_gym reads the integer {SCHEMA_VERSION})")
         r = d["road"]
         _exact_keys("road", r, {"lane_width", "n_lanes", "length"})
-        road = Road(r["lane_width"], r["n_lanes"], float("inf") if r["length"] is None else r["length"])
+        road = Road(_finite("road.lane_width", r["lane_width"], positive=True),
+                    _integer("road.n_lanes", r["n_lanes"], minimum=1),
+                    float("inf") if r["length"] is None else _finite("road.length", r["length"], positive=True))
         if not isinstance(d["vehicles"], list):
             raise ValueError("scenario.vehicles must be a list")
         return cls(id=d["id"], seed=d["seed"], params=d["params"], duration=d["duration"], dt=d["dt"],
@@ -293,4 +326,6 @@ class Scenario:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise ValueError(f"malformed scenario JSON: {exc}") from None
+        except RecursionError:
+            raise ValueError("malformed scenario JSON: nested too deeply") from None
         return cls.from_dict(data)
