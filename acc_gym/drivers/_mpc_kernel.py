@@ -98,6 +98,11 @@ def mode_limits(P, S, i, m, v, u_prev, a_need):
     # ramp: move towards the mode's range at the rate limit, never jump
     lower0 = max(min(mode_lo, u_prev + rate0), u_prev - rate0)
     upper0 = min(max(mode_hi, u_prev - rate0), u_prev + rate0)
+    if m == EMERGENCY:
+        # no driver lets go of the brake when it realises it needs more: in an emergency the
+        # first input keeps at least the current braking (unless that is harder than the
+        # emergency range itself, whose lower edge then rules), and deepens at the emergency jerk
+        upper0 = max(lower0, min(upper0, u_prev))
     return lower0, upper0, env_lo, env_hi, rate
 
 
