@@ -25,6 +25,7 @@ from acc_gym.campaigns.plan import (Chunk, check_hours, check_positive_int, chec
 
 DEFAULT_CHUNK_SIZE = 20
 _CHUNK_FILE = re.compile(r"^chunk-(\d{6})\.parquet$")
+_CHECKSUM_FILE = re.compile(r"^chunk-(\d{6})\.sha256$")
 
 
 @dataclass(frozen=True)
@@ -68,6 +69,8 @@ def _check_chunk_files(out_dir: Path, n_chunks: int) -> None:
         return
     for p in sorted(folder.iterdir()):
         if p.name.startswith(".") and p.name.endswith(".tmp"):
+            continue
+        if _CHECKSUM_FILE.match(p.name) and int(p.name[6:12]) < n_chunks:
             continue
         m = _CHUNK_FILE.match(p.name)
         if m is None or int(m.group(1)) >= n_chunks:
@@ -142,10 +145,14 @@ def run_campaign(suite, hours: float, controller: str, out_dir, *, split: str = 
     controller = _controller_ref(controller)
     import acc_gym
 
+    from acc_gym.leaderboard.provenance import code_digest
+
+    code = code_digest(controller)
     settings = Settings(suite=str(suite_obj.name), suite_version=str(suite_obj.version),
                         suite_hash=str(suite_obj.hash(split)), env_id=str(suite_obj.env_id), split=split,
-                        root_seed=int(root), controller=controller, hours=hours, chunk_size=chunk_size,
-                        acc_gym_version=acc_gym.__version__)
+                        root_seed=int(root), controller=controller,
+                        controller_code=code["sha256"] or f"unlocated: {code.get('why')}", hours=hours,
+                        chunk_size=chunk_size, acc_gym_version=acc_gym.__version__)
     out_dir = Path(out_dir)
     manifest_path = out_dir / store.MANIFEST
     if manifest_path.is_file():

@@ -1,7 +1,10 @@
 """A campaign's settings and its ``campaign.json`` manifest.
 
 The manifest pins everything the results depend on: the suite (name, version, hash of
-the split), the split, the root seed, the controller reference, the environment id, the
+the split), the split, the root seed, the controller reference and a digest of its code
+(the files its reference loads, :func:`acc_gym.leaderboard.provenance.code_digest`: an
+edited ``mymod.py`` between an interrupted run and its resume is refused, not mixed in),
+the environment id, the
 hours asked for, the chunk size, and this package's version; plus what planning found
 (number of scenarios and chunks, simulated seconds) and, for the record only, the
 versions of Python, numpy, gymnasium and pyarrow.
@@ -23,8 +26,8 @@ from dataclasses import asdict, dataclass
 from acc_gym.campaigns.errors import CampaignError
 
 FORMAT = "acc_gym.campaign/1"
-PINNED = ("format", "suite", "suite_version", "suite_hash", "env_id", "split", "root_seed", "controller", "hours",
-          "chunk_size", "acc_gym_version")
+PINNED = ("format", "suite", "suite_version", "suite_hash", "env_id", "split", "root_seed", "controller",
+          "controller_code", "hours", "chunk_size", "acc_gym_version")
 
 
 @dataclass(frozen=True)
@@ -38,6 +41,7 @@ class Settings:
     split: str
     root_seed: int
     controller: str
+    controller_code: str  # sha256 of the controller's files (acc_gym.leaderboard.provenance.code_digest)
     hours: float
     chunk_size: int
     acc_gym_version: str
@@ -93,7 +97,11 @@ def check_manifest(manifest: dict, path) -> Settings:
 def compare(existing: Settings, wanted: Settings, path) -> None:
     """Raise :class:`CampaignError` naming every pinned field that differs."""
     diffs = [f"{k}: {getattr(existing, k)!r} there, {getattr(wanted, k)!r} now" for k in PINNED
-             if getattr(existing, k) != getattr(wanted, k)]
+             if getattr(existing, k) != getattr(wanted, k) and k != "controller_code"]
+    if existing.controller_code != wanted.controller_code and existing.controller == wanted.controller:
+        diffs.append(f"the code of controller {wanted.controller!r} changed since the campaign started (sha256 "
+                     f"{existing.controller_code[:16]}... there, {wanted.controller_code[:16]}... now): its rows would "
+                     f"mix two controllers")
     if diffs:
         raise CampaignError(f"{path} belongs to a campaign with other settings ({'; '.join(diffs)}); "
                             f"use another output directory, or the same settings to resume it")

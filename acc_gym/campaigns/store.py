@@ -6,7 +6,13 @@
 campaign killed mid-write leaves at most a stray temporary file, which is ignored and
 removed when the campaign resumes. One campaign process per directory.
 
-**Validation.** A chunk file counts only if it reads as Parquet, has exactly the
+**Checksums.** Each chunk's sha256 is written to ``chunk-NNNNNN.sha256`` beside it
+*before* the chunk file itself is moved into place (both atomically), and checked on
+every read: a flipped bit inside a Parquet page -- which Parquet itself may read without
+complaint, as a different number -- is refused naming the file. A crash between the two
+writes leaves a checksum without its chunk, and the chunk simply runs again.
+
+**Validation.** A chunk file counts only if its checksum matches, it reads as Parquet, has exactly the
 expected schema (:data:`acc_gym.campaigns.episodes.COLUMNS`), carries the campaign's
 fingerprint and chunk number in its metadata, and holds one row for each of the chunk's
 scenario indices, in order. Since writes are atomic, a file failing these checks was
@@ -17,6 +23,8 @@ worse, read as empty. The same holds for ``campaign.json`` and ``summary.json``.
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 from pathlib import Path
 
@@ -34,6 +42,10 @@ META_CHUNK = b"acc_gym.campaign.chunk"
 
 def chunk_path(out_dir, number: int) -> Path:
     return Path(out_dir) / CHUNK_DIR / f"chunk-{number:06d}.parquet"
+
+
+def checksum_path(out_dir, number: int) -> Path:
+    return Path(out_dir) / CHUNK_DIR / f"chunk-{number:06d}.sha256"
 
 
 def atomic_write(path, write) -> None:
@@ -83,9 +95,18 @@ def write_chunk(out_dir, chunk: Chunk, rows: list[dict], fingerprint: str) -> Pa
                             f"expected {list(chunk.indices)}")
     sch = schema().with_metadata({META_FINGERPRINT: fingerprint.encode(), META_CHUNK: str(chunk.number).encode()})
     table = pa.Table.from_pylist(rows, schema=sch)
+    buf = io.BytesIO()
+    pq.write_table(table, buf)
+    data = buf.getvalue()
     path = chunk_path(out_dir, chunk.number)
-    atomic_write(path, lambda f: pq.write_table(table, f))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(checksum_path(out_dir, chunk.number), lambda f: f.write((sha256(data) + "\n").encode()))
+    atomic_write(path, lambda f: f.write(data))
     return path
+
+
+def sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
 
 
 def read_chunk(out_dir, chunk: Chunk, fingerprint: str):
@@ -93,8 +114,17 @@ def read_chunk(out_dir, chunk: Chunk, fingerprint: str):
     pa, pq = require_pyarrow()
     path = chunk_path(out_dir, chunk.number)
     hint = "; delete it to run that chunk again"
+    data = path.read_bytes()  # FileNotFoundError: not run yet
     try:
-        table = pq.read_table(path)
+        recorded = checksum_path(out_dir, chunk.number).read_text().strip()
+    except (FileNotFoundError, UnicodeDecodeError):
+        raise CampaignError(f"chunk file {path} has no checksum ({checksum_path(out_dir, chunk.number).name} is "
+                            f"missing or unreadable){hint}") from None
+    if sha256(data) != recorded:
+        raise CampaignError(f"chunk file {path} is damaged: its sha256 {sha256(data)[:16]}... is not the one recorded "
+                            f"when it was written ({recorded[:16]}...){hint}")
+    try:
+        table = pq.read_table(io.BytesIO(data))
     except FileNotFoundError:
         raise
     except (pa.ArrowException, OSError) as exc:

@@ -88,3 +88,30 @@ def test_killed_process_resumes(reference, tmp_path):
     summary = run_campaign(SUITE, HOURS, controller, out, chunk_size=CHUNK, workers=1)  # not slowed here
     _check_same(reference, out, summary)
     assert summary["controller"] == controller
+
+
+def test_a_controller_whose_code_changed_is_refused_on_resume(tmp_path, monkeypatch):
+    """Editing ``mymod.py`` between an interrupted run and its resume would mix two controllers
+    in one "complete" campaign: the manifest pins the code's digest and the resume names it."""
+    import re
+
+    from acc_gym.campaigns import CampaignError, load_campaign, run_campaign
+    from campaign_settings import CHUNK, HOURS, SUITE
+
+    code = tmp_path / "code"
+    code.mkdir()
+    module = code / "pinned_ctrl_issue20.py"
+    law = ("import numpy as np\n\nclass Ctrl:\n    def predict(self, obs, deterministic=True):\n"
+           "        return np.array([{}], dtype=np.float32), None\n")
+    module.write_text(law.format("0.1"))
+    monkeypatch.syspath_prepend(str(code))
+    out = tmp_path / "run"
+    run_campaign(SUITE, HOURS, "pinned_ctrl_issue20:Ctrl", out, chunk_size=CHUNK, workers=1, max_chunks=1)
+    manifest = load_campaign(out).manifest
+    assert len(manifest["controller_code"]) == 64
+    module.write_text(law.format("0.9"))  # another controller under the same name
+    with pytest.raises(CampaignError, match=re.escape("the code of controller 'pinned_ctrl_issue20:Ctrl' changed")):
+        run_campaign(SUITE, HOURS, "pinned_ctrl_issue20:Ctrl", out, chunk_size=CHUNK, workers=1)
+    module.write_text(law.format("0.1"))  # the same code again: resumes
+    summary = run_campaign(SUITE, HOURS, "pinned_ctrl_issue20:Ctrl", out, chunk_size=CHUNK, workers=1)
+    assert summary["episodes"] == load_campaign(out).episodes
