@@ -187,5 +187,5 @@ def run_campaign(suite, hours: float, controller: str, out_dir, *, split: str = 
     from acc_gym.campaigns.summary import summarise_campaign
 
     summary = summarise_campaign(load_campaign(out_dir), confidence)
-    store.write_json(out_dir / store.SUMMARY, summary)
+    store.write_json_if_changed(out_dir / store.SUMMARY, summary)  # a finished, read-only campaign still summarises
     return summary

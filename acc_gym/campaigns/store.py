@@ -55,16 +55,40 @@ def atomic_write(path, write) -> None:
 
 
 def write_json(path, obj) -> None:
-    atomic_write(path, lambda f: f.write((json.dumps(obj, indent=1, allow_nan=False) + "\n").encode()))
+    text = (json.dumps(obj, indent=1, allow_nan=False) + "\n").encode()
+    try:
+        atomic_write(path, lambda f: f.write(text))
+    except OSError as exc:
+        raise CampaignError(f"could not write {path}: {exc.strerror or exc} (errno {exc.errno}); the chunk files "
+                            f"written so far are kept, run the campaign again once there is room") from None
+
+
+def write_json_if_changed(path, obj) -> bool:
+    """Write ``obj`` unless ``path`` already holds it (a finished campaign in a read-only
+    directory can still be summarised); True if it wrote."""
+    path = Path(path)
+    try:
+        if path.is_file() and json.loads(path.read_text()) == json.loads(json.dumps(obj, allow_nan=False)):
+            return False
+    except (json.JSONDecodeError, UnicodeDecodeError, OSError):
+        pass
+    write_json(path, obj)
+    return True
+
+
+# what to do about a damaged file: the summary is derived from the chunks, the manifest is not
+_ADVICE = {"campaign summary": "delete it (the next run or summarise_campaign rewrites it from the chunk files)",
+           "campaign manifest": "restore it from a copy, or start the campaign again in an empty directory (its "
+                                "chunk files cannot be trusted without the manifest they were run under)"}
 
 
 def read_json(path, what: str) -> dict:
     path = Path(path)
+    advice = _ADVICE.get(what, "delete the whole directory")
     try:
         obj = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise CampaignError(f"{what} {path} is corrupted or truncated ({exc}); delete it (it is rewritten "
-                            f"from the chunk files) or the whole directory") from None
+        raise CampaignError(f"{what} {path} is corrupted or truncated ({exc}); {advice}") from None
     if not isinstance(obj, dict):
         raise CampaignError(f"{what} {path} is corrupted: not a JSON object")
     return obj
@@ -100,8 +124,12 @@ def write_chunk(out_dir, chunk: Chunk, rows: list[dict], fingerprint: str) -> Pa
     data = buf.getvalue()
     path = chunk_path(out_dir, chunk.number)
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(checksum_path(out_dir, chunk.number), lambda f: f.write((sha256(data) + "\n").encode()))
-    atomic_write(path, lambda f: f.write(data))
+    try:
+        atomic_write(checksum_path(out_dir, chunk.number), lambda f: f.write((sha256(data) + "\n").encode()))
+        atomic_write(path, lambda f: f.write(data))
+    except OSError as exc:  # a full disk, a read-only directory: name the file, keep what was written
+        raise CampaignError(f"could not write chunk file {path}: {exc.strerror or exc} (errno {exc.errno}); the "
+                            f"chunk files written so far are kept, run the campaign again to finish") from None
     return path
 
 

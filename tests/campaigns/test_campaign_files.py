@@ -147,3 +147,49 @@ def test_bad_inputs_name_the_value(tmp_path, kwargs, message):
 def test_load_campaign_of_an_empty_directory(tmp_path):
     with pytest.raises(CampaignError, match="holds no campaign"):
         load_campaign(tmp_path)
+
+
+def test_a_finished_campaign_summarises_where_nothing_can_be_written(copy, reference, monkeypatch):
+    """Read-only (simulated: every write raises, since the tests may run as root): a finished
+    campaign's summary.json already says it all, so nothing needs writing."""
+    from acc_gym.campaigns import store
+
+    def refuse(path, write):
+        raise PermissionError(13, "Permission denied", str(path))
+
+    monkeypatch.setattr(store, "atomic_write", refuse)
+    assert _run(copy) == reference[1]
+    assert load_summary(copy) == reference[1]
+
+
+def test_a_full_disk_names_the_file_and_keeps_what_was_written(tmp_path, monkeypatch, reference):
+    from acc_gym.campaigns import store
+
+    real = store.atomic_write
+    calls = {"n": 0}
+
+    def full_after_two_chunks(path, write):
+        if str(path).endswith(".parquet"):
+            calls["n"] += 1
+            if calls["n"] > 2:
+                raise OSError(28, "No space left on device", str(path))
+        return real(path, write)
+
+    monkeypatch.setattr(store, "atomic_write", full_after_two_chunks)
+    out = tmp_path / "full"
+    with pytest.raises(CampaignError, match=r"could not write chunk file .*chunk-000002.parquet: No space left on "
+                                            r"device \(errno 28\).*kept"):
+        _run(out)
+    monkeypatch.setattr(store, "atomic_write", real)
+    assert load_campaign(out).chunks_done == (0, 1)  # what was written is kept
+    assert _run(out) == reference[1]  # and the campaign finishes
+
+
+def test_a_damaged_manifest_gives_advice_that_works(copy, tmp_path, reference):
+    path = copy / "campaign.json"
+    path.write_text(path.read_text()[:50])
+    with pytest.raises(CampaignError, match="restore it from a copy, or start the campaign again in an empty "
+                                            "directory") as err:
+        load_campaign(copy)
+    assert "rewritten from the chunk files" not in str(err.value)
+    assert _run(tmp_path / "fresh") == reference[1]  # the advice: an empty directory
