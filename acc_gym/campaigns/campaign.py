@@ -13,7 +13,7 @@ same as an uninterrupted run's.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from acc_gym.campaigns import store
@@ -95,6 +95,28 @@ def load_campaign(out_dir) -> Campaign:
     return Campaign(out_dir, manifest, settings, table, tuple(done))
 
 
+def _extend(out_dir: Path, manifest: dict, existing: Settings, settings: Settings, suite_obj) -> dict:
+    """Grow a campaign to ``settings.hours``: the scenarios of the shorter plan are a prefix of
+    the longer one's (the same stream, indices in order), so its full chunks stay; a partial
+    last chunk is deleted first (it runs again with its new scenarios), then the manifest is
+    rewritten. Asking for fewer hours than the campaign holds is refused."""
+    path = out_dir / store.MANIFEST
+    if settings.hours < existing.hours:
+        raise CampaignError(f"{path} holds a campaign of {existing.hours:g} h; asking for {settings.hours:g} h "
+                            f"would drop episodes (summarise it as it is, or use another output directory)")
+    n, seconds = plan_length(suite_obj, settings.split, settings.root_seed, settings.hours)
+    old_n, size = int(manifest["n_scenarios"]), settings.chunk_size
+    if n < old_n:  # cannot happen for one stream; refuse rather than mix
+        raise CampaignError(f"{path}: {settings.hours:g} h plan {n} scenarios, fewer than the {old_n} there")
+    if old_n % size:
+        partial = old_n // size
+        for p in (store.chunk_path(out_dir, partial), store.checksum_path(out_dir, partial)):
+            p.unlink(missing_ok=True)
+    new = build_manifest(settings, n, len(chunks(n, size)), seconds)
+    store.write_json(path, new)
+    return new
+
+
 def _controller_ref(controller) -> str:
     """Check the controller loads here (fail before planning) and return its reference; a saved model's path
     is made absolute so that workers started elsewhere find it."""
@@ -157,7 +179,10 @@ def run_campaign(suite, hours: float, controller: str, out_dir, *, split: str = 
     manifest_path = out_dir / store.MANIFEST
     if manifest_path.is_file():
         manifest, existing = _read_manifest(out_dir)
-        compare(existing, settings, manifest_path)
+        if existing.hours != settings.hours and replace(existing, hours=settings.hours) == settings:
+            manifest = _extend(out_dir, manifest, existing, settings, suite_obj)
+        else:
+            compare(existing, settings, manifest_path)
     else:
         if (out_dir / store.CHUNK_DIR).is_dir() and any((out_dir / store.CHUNK_DIR).glob("chunk-*")):
             raise CampaignError(f"{out_dir} holds chunk files but no {store.MANIFEST}; use another output directory")

@@ -11,7 +11,9 @@ versions of Python, numpy, gymnasium and pyarrow.
 
 A restart into a directory that already holds a manifest must have the same settings
 (:data:`PINNED`); any difference raises :class:`CampaignError` naming each field, so
-results of different campaigns are never mixed. The ``fingerprint`` (a hash of the pinned
+results of different campaigns are never mixed -- except more ``hours``, which extend the
+campaign (:func:`acc_gym.campaigns.campaign.run_campaign`): the fingerprint leaves hours
+out, since a shorter campaign's scenarios are a prefix of a longer one's. The ``fingerprint`` (a hash of the pinned
 fields) is also written into every chunk file and into ``summary.json``, so a file
 copied in from another campaign is refused too.
 """
@@ -49,7 +51,9 @@ class Settings:
 
     @property
     def fingerprint(self) -> str:
-        blob = json.dumps({k: getattr(self, k) for k in PINNED}, sort_keys=True)
+        """A hash of the pinned settings except ``hours``: a campaign extended to more hours
+        keeps its chunks (its scenarios are a prefix of the longer plan's)."""
+        blob = json.dumps({k: getattr(self, k) for k in PINNED if k != "hours"}, sort_keys=True)
         return hashlib.sha256(blob.encode()).hexdigest()[:20]
 
 

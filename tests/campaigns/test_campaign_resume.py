@@ -115,3 +115,31 @@ def test_a_controller_whose_code_changed_is_refused_on_resume(tmp_path, monkeypa
     module.write_text(law.format("0.1"))  # the same code again: resumes
     summary = run_campaign(SUITE, HOURS, "pinned_ctrl_issue20:Ctrl", out, chunk_size=CHUNK, workers=1)
     assert summary["episodes"] == load_campaign(out).episodes
+
+
+def test_more_hours_extend_a_campaign_and_reuse_its_chunks(tmp_path, reference):
+    """A shorter campaign is a prefix of a longer one: asking the same directory for more
+    hours keeps every full chunk (byte for byte), reruns only a partial last chunk and the
+    new ones, and ends where a campaign run for the longer time from scratch ends."""
+    from acc_gym.campaigns import CampaignError, load_campaign, run_campaign
+    from campaign_settings import CHUNK, CONTROLLER, SUITE
+
+    short, longer = 0.025, 0.04  # 7 scenarios (chunks 3, 3, 1); 0.04 h: the reference (10: 3, 3, 3, 1)
+    out = tmp_path / "grow"
+    run_campaign(SUITE, short, CONTROLLER, out, chunk_size=CHUNK, workers=1)
+    before = {p.name: p.read_bytes() for p in (out / "chunks").glob("chunk-*.parquet")}
+    n_short = load_campaign(out).manifest["n_scenarios"]
+    assert n_short % CHUNK != 0  # a partial last chunk, to be rerun
+    written = []
+    summary = run_campaign(SUITE, longer, CONTROLLER, out, chunk_size=CHUNK, workers=1,
+                           on_chunk=lambda number, done, total: written.append(number))
+    full = n_short // CHUNK
+    assert written == list(range(full, load_campaign(out).manifest["n_chunks"]))  # only the partial and new chunks ran
+    for name, data in before.items():
+        if int(name[6:12]) < full:
+            assert (out / "chunks" / name).read_bytes() == data
+    assert summary == reference[1]
+    kept = sorted(p.name for p in (out / "chunks").iterdir())
+    with pytest.raises(CampaignError, match="holds a campaign of 0.04 h; asking for 0.025 h would drop episodes"):
+        run_campaign(SUITE, short, CONTROLLER, out, chunk_size=CHUNK, workers=1)
+    assert sorted(p.name for p in (out / "chunks").iterdir()) == kept
