@@ -242,10 +242,20 @@ def bwrap_problem(uid: int | None = None) -> str | None:
 
 def _bwrap_flags(workdir: str) -> list[str]:
     """The sandbox: the file system read-only, a private /tmp, /dev and /proc, no network,
-    no shared IPC or PID namespace, a new session, and death with its parent."""
-    return ["--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--tmpfs", "/tmp",
-            "--bind", workdir, workdir, "--unshare-all", "--die-with-parent", "--new-session",
-            "--chdir", workdir]
+    no shared IPC or PID namespace, a new session, and death with its parent. What the
+    controller needs from the host's /tmp -- an interpreter or virtual environment there,
+    the directories it imports from -- is bound back in, read-only."""
+    tmp = "/tmp"
+    needed = {os.path.realpath(p) for p in (sys.prefix, sys.base_prefix, os.path.dirname(sys.executable),
+                                            *search_path())}
+    back = sorted(p for p in needed if (p == tmp or p.startswith(tmp + os.sep)) and os.path.isdir(p)
+                  and p != tmp and not p.startswith(os.path.realpath(workdir)))
+    keep = [p for p in back if not any(p != q and p.startswith(q + os.sep) for q in back)]  # outermost only
+    flags = ["--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", "--tmpfs", tmp]
+    for p in keep:
+        flags += ["--ro-bind", p, p]
+    return flags + ["--bind", workdir, workdir, "--unshare-all", "--die-with-parent", "--new-session",
+                    "--chdir", workdir]
 
 
 class ControllerProcess:
