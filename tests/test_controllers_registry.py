@@ -4,6 +4,7 @@ from the agents package; third-party distributions register controllers by entry
 import ast
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -86,10 +87,14 @@ def test_register_controller_in_process():
         controllers.unregister_controller("not-a-controller")
 
 
-def readable_tmpdir() -> Path:
+@pytest.fixture
+def readable_tmpdir():
+    """A temporary directory other users may read (the leaderboard's sandboxed controller may
+    run as another user, so pytest's 0o700 tmp_path will not do), removed afterwards."""
     d = Path(tempfile.mkdtemp(prefix="acc-gym-registry-"))
-    os.chmod(d, 0o755)  # the leaderboard's sandboxed controller may run as another user
-    return d
+    os.chmod(d, 0o755)
+    yield d
+    shutil.rmtree(d, ignore_errors=True)
 
 
 def throwaway_distribution(root: Path, dist: str = "third_party_acc", name: str = "third-acc",
@@ -112,8 +117,8 @@ def run_cli(args, pythonpath: Path, cwd: Path):
     return subprocess.run([*CLI, *args], capture_output=True, text=True, env=env, cwd=cwd, timeout=600)
 
 
-def test_a_third_party_distribution_registers_a_controller_by_entry_point():
-    root = readable_tmpdir()
+def test_a_third_party_distribution_registers_a_controller_by_entry_point(readable_tmpdir):
+    root = readable_tmpdir
     throwaway_distribution(root)
     listed = run_cli(["controllers"], root, root)
     assert listed.returncode == 0, listed.stderr
@@ -130,8 +135,8 @@ def test_a_third_party_distribution_registers_a_controller_by_entry_point():
     assert ranking["third-acc"]["status"] == "ok" and ranking["acc"]["status"] == "ok"
 
 
-def test_two_distributions_with_one_name_are_an_error_naming_both():
-    root = readable_tmpdir()
+def test_two_distributions_with_one_name_are_an_error_naming_both(readable_tmpdir):
+    root = readable_tmpdir
     throwaway_distribution(root)
     throwaway_distribution(root, dist="other_acc", target="third_party_acc:Other")
     ev = run_cli(["evaluate", "third-acc", "--env", "acc_gym/NCAP-v0", "--episodes", "1"], root, root)
@@ -139,8 +144,8 @@ def test_two_distributions_with_one_name_are_an_error_naming_both():
     assert "registered twice" in ev.stderr and "third-party-acc" in ev.stderr and "other-acc" in ev.stderr
 
 
-def test_a_foreign_agents_module_first_on_the_path_changes_nothing():
-    root = readable_tmpdir()
+def test_a_foreign_agents_module_first_on_the_path_changes_nothing(readable_tmpdir):
+    root = readable_tmpdir
     (root / "agents").mkdir()
     (root / "agents" / "__init__.py").write_text("raise ImportError('a foreign agents package, not acc_gym's')\n")
     for p in [root, *root.rglob("*")]:
