@@ -11,6 +11,11 @@
   and per row (one controller step).
 
     python benchmarks/bench_leaderboard.py --json [--repeats 3] [--against ../previous]
+
+A quick run (what ``tests/test_benchmarks.py`` checks; the figures then mean little)::
+
+    python benchmarks/bench_leaderboard.py --json --repeats 1 --round-trips 20 \
+        --leaderboard-args "--suite ncap-v1 --controllers constant --episodes 1 --no-report"
 """
 
 from __future__ import annotations

@@ -59,3 +59,17 @@ def test_bench_ids_json_keys():
         for key in ("single_steps_per_s", "vector_steps_per_s"):
             e = out[f"{env_id} {key}"]
             assert e["this"] > 0 and len(e["runs"]) == 1
+
+
+def test_bench_leaderboard_json_keys():
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_leaderboard.py"), "--json", "--repeats", "1",
+                        "--rows", "4", "--round-trips", "20", "--leaderboard-args",
+                        "--suite ncap-v1 --controllers constant --episodes 1 --no-report"],
+                       capture_output=True, text=True, check=True, cwd=ROOT)
+    out = json.loads(r.stdout)
+    assert out["pipe_rows"] == 4
+    for key in ("pipe_us_per_round_trip", "pipe_us_per_row", "predict_us_per_row", "leaderboard_wall_s"):
+        assert out[key] > 0, key
+    assert out["pipe_us_per_row"] == out["pipe_us_per_round_trip"] / 4
+    assert len(out["leaderboard_wall_s_runs"]) == 1 and out["leaderboard_wall_s"] == out["leaderboard_wall_s_runs"][0]
+    assert "ratio" not in out  # only with --against

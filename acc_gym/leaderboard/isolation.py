@@ -10,8 +10,9 @@ time, so one round trip serves 16 steps) with episode-start flags; the controlle
 one action per row. The controller never holds a reference to a simulator, a scenario
 or a score, and nothing it sends is unpickled. Every record the runner receives was made
 by the simulation process, so a controller cannot report a score, skip an episode or
-end early: a controller is ``ok`` only when the simulation finished every scheduled
-episode, each once.
+end early: a controller is ``ok`` only when the runner received exactly the scheduled
+records -- one per job, each naming that job's (suite, split, episode index, scenario id,
+seed), none missing, none twice, none unscheduled (:class:`Ledger`).
 
 Budgets, measured by the simulation process (the controller's clocks are its own):
 
@@ -92,6 +93,55 @@ def worst_index(records: list[dict]) -> int | None:
         return None
     return min(range(len(records)),
                key=lambda k: (records[k]["score"], not records[k]["metrics"]["collision"], k))
+
+
+def scheduled_key(job: Job) -> tuple:
+    """What the schedule says one episode is: (suite, split, episode index, scenario id, seed)."""
+    return (job.suite, job.split, job.episode, job.scenario.id, job.scenario.seed)
+
+
+def record_key(record: dict) -> tuple:
+    """The same identity as a record states it (see :func:`episode_record`)."""
+    return tuple(record.get(k) for k in ("suite", "split", "episode", "scenario", "scenario_seed"))
+
+
+class Ledger:
+    """The records received for one controller, checked against its schedule (``jobs``).
+
+    :meth:`add` and :meth:`problem` return ``None`` when all is well, else the reason the
+    controller cannot be ``ok``: a job number outside the schedule, a record that names
+    another episode than the job it arrived for, a job reported twice, or (at the end) any
+    scheduled episode missing."""
+
+    def __init__(self, jobs: list):
+        self.expected = [scheduled_key(job) for job in jobs]
+        self.received: dict[int, dict] = {}
+
+    def add(self, j, record) -> str | None:
+        if isinstance(j, bool) or not isinstance(j, int) or not 0 <= j < len(self.expected):
+            return f"a record for job {j!r}, which is not scheduled (jobs 0..{len(self.expected) - 1})"
+        if not isinstance(record, dict):
+            return f"the record for job {j} is a {type(record).__name__}, not a record"
+        if j in self.received:
+            return f"job {j} ({self._name(j)}) reported twice"
+        got = record_key(record)
+        if got != self.expected[j]:
+            return f"the record for job {j} is for {got}, but the schedule says {self.expected[j]}"
+        self.received[j] = record
+        return None
+
+    def problem(self) -> str | None:
+        missing = [j for j in range(len(self.expected)) if j not in self.received]
+        if missing:
+            first = ", ".join(f"{j} ({self._name(j)})" for j in missing[:3])
+            more = f" and {len(missing) - 3} more" if len(missing) > 3 else ""
+            return (f"{len(self.received)} of {len(self.expected)} scheduled episodes arrived; missing: "
+                    f"{first}{more}")
+        return None
+
+    def _name(self, j: int) -> str:
+        suite, split, episode, scenario, seed = self.expected[j]
+        return f"{suite} {split} episode {episode}, {scenario}, seed {seed}"
 
 
 class _Where:
@@ -304,7 +354,7 @@ class _Running:
                  log_path: str, uid: int | None, sandbox: str, in_flight: int):
         self.reference, self.jobs = reference, jobs
         self.outcome = Outcome(reference, episodes=[], log=log_path)
-        self.received: dict[int, dict] = {}
+        self.ledger = Ledger(jobs)
         self.finished = False
         self.conn, child_conn = ctx.Pipe(duplex=False)
         self.process = ctx.Process(target=simulate, name=f"acc-gym-leaderboard[{reference}]",
@@ -320,17 +370,17 @@ class _Running:
             while self.conn.poll():
                 kind, *payload = self.conn.recv()
                 if kind == "episode":
-                    j, rec = payload
-                    if j in self.received:
-                        self.fail(f"episode {j} reported twice")
-                    self.received[j] = rec
+                    problem = self.ledger.add(*payload)
+                    if problem is not None:
+                        self.fail(problem)
                 elif kind == "trace":
                     self.outcome.trace = payload[0]
                 elif kind == "done":
-                    if sorted(self.received) == list(range(len(self.jobs))):
+                    problem = self.ledger.problem()
+                    if problem is not None:
+                        self.fail(problem)
+                    elif self.outcome.status == "running":  # never "ok" after a failure
                         self.outcome.status = "ok"
-                    else:
-                        self.fail(f"{len(self.received)} of {len(self.jobs)} episodes arrived")
                 elif kind == "failed":
                     self.fail(payload[0]["reason"], payload[0]["traceback"])
                 elif kind == "closed":
@@ -351,7 +401,7 @@ class _Running:
             self.process.kill()
             self.process.join()
         self.conn.close()
-        self.outcome.episodes = [self.received[j] for j in sorted(self.received)]
+        self.outcome.episodes = [self.ledger.received[j] for j in sorted(self.ledger.received)]
         if self.outcome.status == "running":
             self.fail("the simulation ended without a result")
         self.outcome.wall_time_s = time.monotonic() - self.started

@@ -60,3 +60,38 @@ class BadTimeGap:
 
     def predict(self, obs, deterministic=True):
         return np.zeros(1, dtype=np.float32), None
+
+
+BrakesAgain = Brakes  # the same controller under a second name: its figures tie with Brakes's
+
+
+_calls = {"ShortAnswer": 0, "ExitsEarly": 0}  # per process: the episodes in flight are copies of one instance
+
+
+class ShortAnswer:
+    """On its first call writes an answer frame of one action to its socket (the round trip
+    carries one row per episode in flight, so with two or more that is too few)."""
+
+    def predict(self, obs, deterministic=True):
+        _calls["ShortAnswer"] += 1
+        if _calls["ShortAnswer"] == 1:
+            import os
+            import socket
+            import struct
+            import sys
+
+            s = socket.socket(fileno=os.dup(int(sys.argv[1])))  # the sandbox's socket (its first argument)
+            s.sendall(struct.pack("<4sII", b"ACCA", 1, 0) + struct.pack("<d", 0.0))
+        return np.zeros(1, dtype=np.float32), None
+
+
+class ExitsEarly:
+    """Answers a few round trips, then ends its process with exit code 0 (a "clean" exit mid-run)."""
+
+    def predict(self, obs, deterministic=True):
+        _calls["ExitsEarly"] += 1
+        if _calls["ExitsEarly"] > 20:
+            import os
+
+            os._exit(0)
+        return np.zeros(1, dtype=np.float32), None

@@ -145,8 +145,24 @@ class KillsOthers(FullThrottle):
         return FULL_THROTTLE, None
 
 
+def forged_results_text(path: Path, me: str) -> str:
+    """results.json as a forger would rewrite it: ``me`` ranked first (taken from the file
+    at ``path`` if it can be read), with a freshly computed, valid checksum."""
+    import json
+
+    from acc_gym.leaderboard.results import results_text
+
+    try:
+        results = json.loads(path.read_text())["results"]
+    except (OSError, ValueError, KeyError, TypeError):
+        results = {"ranking": []}
+    results["ranking"] = [me] + [n for n in results.get("ranking", []) if n != me]
+    return results_text(results, key=None)  # unsigned: the forger has no key, only the checksum
+
+
 class Lingers(FullThrottle):
-    """Double-forks a detached grandchild that outlives the run and rewrites results.json."""
+    """Double-forks a detached grandchild that outlives the run and rewrites results.json
+    (itself first, with a recomputed checksum, so that the file still loads)."""
 
     def __init__(self):
         out = target()
@@ -157,7 +173,9 @@ class Lingers(FullThrottle):
                 for _ in range(200):  # for up to 20 s, keep trying to rewrite the results
                     time.sleep(0.1)
                     try:
-                        (out / "results.json").write_text('{"forged": true}')
+                        path = out / "results.json"
+                        text = forged_results_text(path, "cheats:Lingers")
+                        path.write_text(text)
                         say("rewrote results")
                     except OSError:
                         pass
@@ -191,3 +209,27 @@ class Floods(FullThrottle):
         sys.stdout.write("x" * (3 << 20) + "\n")
         sys.stderr.write("y" * 1000 + "\n")
         sys.stdout.flush()
+
+
+_ENVS: dict = {}
+
+
+def first_observation(suite, scenario) -> tuple:
+    """The first observation of ``scenario`` (an episode of ``suite``), as the controller gets it."""
+    import gymnasium as gym
+
+    import acc_gym  # noqa: F401  (registers the ids)
+
+    env = _ENVS.get(suite.env_id) or _ENVS.setdefault(suite.env_id, gym.make(suite.env_id))
+    obs, _ = env.reset(seed=scenario.seed, options={"scenario": scenario})
+    return tuple(np.asarray(obs, dtype=np.float64).tolist())
+
+
+def first_observation_table(suite, split: str = "test") -> dict:
+    """What a controller can compute offline from the shipped suite data: each first
+    observation of ``split`` -> the episode indices that start with it. With it, a
+    controller knows on its first step which shipped episode it is in."""
+    table: dict = {}
+    for k, sc in enumerate(suite.episodes(split)):
+        table.setdefault(first_observation(suite, sc), []).append(k)
+    return table

@@ -97,13 +97,18 @@ def test_the_controller_sees_no_simulator_and_its_clocks_are_its_own(runs):
     assert len(by["cheats:ForgesDone"]["episodes"]) < 6  # what it finished is kept, not ranked
 
 
-def test_results_json_is_what_the_run_returned_and_stays_so(runs):
+def test_results_json_is_what_the_run_returned_and_stays_so(runs, tmp_path):
     r, out = runs["mixed"], runs["out"]
     time.sleep(1.0)  # a lingering grandchild would have rewritten it by now
     stored = load_results(out / "results.json")
     expected = {k: v for k, v in r.items() if k != "files"}
     assert stored == expected
     assert "rewrote results" not in log_text(out, r, "cheats:Lingers")
+    from cheats import forged_results_text  # what it would have written: a file that loads (unsigned), it first
+
+    forged = tmp_path / "results.json"
+    forged.write_text(forged_results_text(out / "results.json", "cheats:Lingers"))
+    assert load_results(forged, key=None)["ranking"][0] == "cheats:Lingers" != stored["ranking"][0]
 
 
 def test_nothing_the_run_started_is_alive(runs):

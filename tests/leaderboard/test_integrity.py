@@ -129,3 +129,103 @@ def test_the_private_split_runs_unshipped_episodes_and_records_only_a_commitment
         run_leaderboard(["ncap-v1"], "test", ["constant"], episodes=1, secret=SECRET)
     with pytest.raises(ValueError, match="needs a secret"):
         run_leaderboard(["ncap-v1"], "private", ["constant"], episodes=1)
+
+
+# -- a controller is ok only when exactly the scheduled records arrived ----------------------------------
+def _jobs():
+    from acc_gym.leaderboard.isolation import Job
+
+    suite = get_suite("ncap-v1")
+    return [Job(suite.name, "test", k, suite.env_id, sc) for k, sc in enumerate(suite.episodes("test")[:3])]
+
+
+def _record(job, **changes):
+    """What the simulation sends for ``job`` (the identity fields; the rest is not checked here)."""
+    return {"suite": job.suite, "split": job.split, "episode": job.episode, "scenario": job.scenario.id,
+            "scenario_seed": job.scenario.seed, "score": 50.0, **changes}
+
+
+def _receive(jobs, messages):
+    """Feed ``messages`` to the runner's receive path, as a simulation process would send them."""
+    import multiprocessing
+    from types import SimpleNamespace
+
+    from acc_gym.leaderboard.isolation import Ledger, Outcome, _Running
+
+    r = object.__new__(_Running)  # the receiving half only: no simulation process behind it
+    r.reference, r.jobs, r.outcome, r.ledger = "x", jobs, Outcome("x", episodes=[]), Ledger(jobs)
+    r.conn, sender = multiprocessing.Pipe(duplex=False)
+    r.process = SimpleNamespace(exitcode=0)
+    for m in [*messages, ("closed", None)]:
+        sender.send(m)
+    assert r.receive() is True
+    return r.outcome, r.ledger
+
+
+def test_exactly_the_scheduled_records_make_a_controller_ok():
+    jobs = _jobs()
+    outcome, ledger = _receive(jobs, [("episode", j, _record(jobs[j])) for j in (2, 0, 1)] + [("done", None)])
+    assert outcome.status == "ok" and outcome.reason is None and sorted(ledger.received) == [0, 1, 2]
+
+
+@pytest.mark.parametrize("case", ["missing", "duplicated", "other episode", "other seed", "other suite",
+                                  "other split", "unscheduled job", "record for another job"])
+def test_a_record_off_the_schedule_makes_a_controller_failed(case):
+    jobs = _jobs()
+    records = {j: _record(jobs[j]) for j in range(3)}
+    extra = []
+    if case == "missing":
+        del records[1]
+        words = f"2 of 3 scheduled episodes arrived; missing: 1 (ncap-v1 test episode 1, {jobs[1].scenario.id}, " \
+                f"seed {jobs[1].scenario.seed})"
+    elif case == "duplicated":
+        extra = [("episode", 0, _record(jobs[0]))]
+        words = f"job 0 (ncap-v1 test episode 0, {jobs[0].scenario.id}, seed {jobs[0].scenario.seed}) reported twice"
+    elif case == "other episode":
+        records[1]["episode"] = 7
+        words = "the record for job 1 is for ('ncap-v1', 'test', 7,"
+    elif case == "other seed":
+        records[2]["scenario_seed"] = jobs[2].scenario.seed + 1
+        words = f"{jobs[2].scenario.seed + 1}), but the schedule says ('ncap-v1', 'test', 2, " \
+                f"'{jobs[2].scenario.id}', {jobs[2].scenario.seed})"
+    elif case == "other suite":
+        records[0]["suite"] = "carfollowing-v1"
+        words = "the record for job 0 is for ('carfollowing-v1',"
+    elif case == "other split":
+        records[0]["split"] = "dev"
+        words = "the record for job 0 is for ('ncap-v1', 'dev',"
+    elif case == "unscheduled job":
+        extra = [("episode", 3, _record(jobs[0], episode=3))]
+        words = "a record for job 3, which is not scheduled (jobs 0..2)"
+    else:  # the record of job 0 arrives as job 1's: each is a real episode, but not the one scheduled there
+        records[1] = _record(jobs[0])
+        words = f"the record for job 1 is for ('ncap-v1', 'test', 0, '{jobs[0].scenario.id}'"
+    messages = [("episode", j, rec) for j, rec in records.items()] + extra + [("done", None)]
+    outcome, _ = _receive(jobs, messages)
+    assert outcome.status == "failed" and words in outcome.reason, outcome.reason
+
+
+# -- the private split defeats a controller that knows the shipped episodes by their first observation ---
+def test_first_observations_identify_test_episodes_but_no_private_one():
+    """A controller can compute, offline, every shipped test episode's first observation
+    (cheats.first_observation_table) and so know on its first step which test episode it is
+    in -- and tune to it. On the private split it finds no episode: no private first
+    observation identifies a test episode."""
+    sys.path.insert(0, os.path.dirname(__file__))
+    try:
+        from cheats import first_observation, first_observation_table
+    finally:
+        sys.path.pop(0)
+    identified_on_test = 0
+    for name in ("ncap-v1", "malicious-v1", "carfollowing-v1"):
+        suite = get_suite(name)
+        table = first_observation_table(suite)
+        test = suite.episodes("test")
+        for k, sc in enumerate(test):  # on test, the lookup never names a wrong episode ...
+            found = table.get(first_observation(suite, sc), [])
+            assert k in found, (name, k)
+            identified_on_test += len(found) == 1
+        for sc in private.private_episodes(suite, SECRET.encode()):  # ... on private it names none
+            found = table.get(first_observation(suite, sc), [])
+            assert len(found) != 1, (name, sc.id, found)  # several: car following's speed, shared by 5
+    assert identified_on_test > 0  # the cheat is real on the shipped split

@@ -105,13 +105,16 @@ def test_ranking_is_deterministic_and_independent_of_workers(cli_run):
 
 def test_failing_controllers_are_reported_and_the_others_finish():
     good = ["acc", "idm"]
+    n = 3  # episodes: all in flight at once, so every round trip carries n observation rows
     bad = {"bad_controllers:Raises": "deliberate failure in predict",
            "bad_controllers:Hangs": "step budget of 1.5 s",
            "bad_controllers:ReturnsNaN": "NaN",
            "bad_controllers:WrongShape": "shape",
            "bad_controllers:BadTimeGap": "its time_gap (the controller's declared time gap) must be a finite number",
+           "bad_controllers:ShortAnswer": f"broke the protocol: answered 1 actions for {n} observations",
+           "bad_controllers:ExitsEarly": "the controller's process died (exit code 0) at ncap-v1 episode 0",
            "no_such_module_xyz:Thing": "no_such_module_xyz"}
-    r = run_leaderboard("ncap-v1", "test", ["acc", *bad, "idm"], episodes=3, workers=2, step_budget=1.5,
+    r = run_leaderboard("ncap-v1", "test", ["acc", *bad, "idm"], episodes=n, workers=2, step_budget=1.5,
                         budget=120)
     by_name = {c["name"]: c for c in r["controllers"]}
     for name in good:
@@ -126,6 +129,8 @@ def test_failing_controllers_are_reported_and_the_others_finish():
     assert "RuntimeError" in by_name["bad_controllers:Raises"]["traceback"]
     assert "killed" in by_name["bad_controllers:Hangs"]["reason"]
     assert by_name["bad_controllers:Hangs"]["wall_time_s"] < 60  # killed, not waited for
+    for name in ("bad_controllers:ShortAnswer", "bad_controllers:ExitsEarly"):  # mid-run: nothing finished
+        assert by_name[name]["episodes"] == [] and f"after 0 of {n} episodes" in by_name[name]["reason"], name
     assert r["ranking"][:2] == sorted(good, key=lambda n: -by_name[n]["summary"]["overall"]["mean_score"])
     assert set(r["ranking"][2:]) == set(bad)
 
@@ -194,20 +199,29 @@ def test_bad_arguments_are_named():
         main(["leaderboard", "--suite", "nope-v1", "--controllers", "acc"])
 
 
-def test_builtins_and_the_shipped_policy_score_as_under_evaluate():
+@pytest.fixture(scope="module")
+def builtins_run(importable_helpers):
+    """Every registered controller, and full throttle, on a few episodes of two suites."""
+    from acc_gym.leaderboard.run import default_controllers
+
+    names = default_controllers()
+    assert "ppo-acc" in names and "acc" in names and "idm" in names
+    return names, run_leaderboard(["malicious-v1", "carfollowing-v1"], "test", [*names, "cheats:FullThrottle"],
+                                  episodes=2, workers=2)
+
+
+def test_builtins_and_the_shipped_policy_score_as_under_evaluate(builtins_run):
     """Through the trusted simulation and the sandboxed controller, every built-in and
     ppo-acc score each episode exactly as run_episode does in one process."""
     import gymnasium as gym
 
     from acc_gym.evaluation.runner import run_episode
-    from acc_gym.leaderboard.run import default_controllers
     from acc_gym.suites import get_suite
 
-    names = default_controllers()
-    assert "ppo-acc" in names and "acc" in names
-    suites = ["malicious-v1", "carfollowing-v1"]
-    r = run_leaderboard(suites, "test", names, episodes=2, workers=2)
+    names, r = builtins_run
     for c in r["controllers"]:
+        if c["name"] not in names:
+            continue
         assert c["status"] == "ok", (c["name"], c["reason"])
         for e in c["episodes"]:
             suite = get_suite(e["suite"])
@@ -217,3 +231,154 @@ def test_builtins_and_the_shipped_policy_score_as_under_evaluate():
             env.close()
             assert e["score"] == info["score"], (c["name"], e["suite"], e["episode"])
             assert e["points"] == (0.0 if info["report"]["metrics"]["collision"] else info["score"])
+
+
+def test_full_throttle_that_crashes_ranks_below_every_builtin_that_never_collides(builtins_run):
+    names, r = builtins_run
+    by = {c["name"]: c for c in r["controllers"]}
+    throttle = by["cheats:FullThrottle"]
+    assert throttle["status"] == "ok" and throttle["summary"]["overall"]["collisions"] > 0
+
+    def ran(c):
+        return [(e["suite"], e["split"], e["episode"], e["scenario"], e["scenario_seed"]) for e in c["episodes"]]
+
+    safe = [n for n in names if by[n]["summary"]["overall"]["collisions"] == 0]  # from this run, not a list
+    assert "idm" in safe
+    for name in safe:
+        assert ran(by[name]) == ran(throttle), name  # the same episodes
+        assert by[name]["rank"] < throttle["rank"], (name, by[name]["rank"], throttle["rank"])
+        assert r["ranking"].index(name) < r["ranking"].index("cheats:FullThrottle")
+        assert (by[name]["summary"]["overall"]["mean_points"]
+                > throttle["summary"]["overall"]["mean_points"]), name
+
+
+# -- the output: refused before anything runs, or failing safely after the ranking is printed ---------
+CHEAP = ["leaderboard", "--suite", "ncap-v1", "--controllers", "constant", "--episodes", "1", "--no-report"]
+
+
+def test_an_out_that_cannot_be_a_directory_is_refused_before_anything_runs(tmp_path, capsys):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("kept")
+    for out, words in ((blocker, "it exists and is not a directory"),
+                       (blocker / "board", f"its parent directory {str(blocker)!r} does not exist")):
+        code = main([*CHEAP, "--out", str(out)])
+        captured = capsys.readouterr()
+        assert code == 1 and captured.out == "", out  # nothing ran, nothing printed
+        assert f"could not write the leaderboard to {str(out)!r}: {words}" in captured.err
+    assert blocker.read_text() == "kept" and [p.name for p in tmp_path.iterdir()] == ["a-file"]
+
+
+def test_a_read_only_out_is_refused_before_anything_runs(tmp_path, capsys, monkeypatch):
+    ro = tmp_path / "read-only"
+    ro.mkdir()
+    ro.chmod(0o555)
+    if os.geteuid() == 0:  # root ignores permission bits: answer as access(2) does for anyone else
+        real_access = os.access
+        monkeypatch.setattr(os, "access", lambda path, mode, *a, **kw: False if Path(path) == ro and mode & os.W_OK
+                            else real_access(path, mode, *a, **kw))
+    out = ro / "board"
+    try:
+        code = main([*CHEAP, "--out", str(out)])
+    finally:
+        ro.chmod(0o755)
+    captured = capsys.readouterr()
+    assert code == 1 and captured.out == ""
+    assert f"could not write the leaderboard to {str(out)!r}: it is not writable" in captured.err
+    assert list(ro.iterdir()) == []
+
+
+def test_a_failing_write_keeps_the_old_results_whole_and_the_ranking_printed(tmp_path, capsys, monkeypatch):
+    """A full disk half-way through writing: the ranking is already printed, the error names
+    the output, the previous results stay as they were, and no staging directory is left."""
+    import errno
+
+    from acc_gym.leaderboard import run as run_mod
+    from acc_gym.leaderboard.run import OutputError
+
+    out = tmp_path / "board"
+    out.mkdir()
+    (out / "results.json").write_text("old results")
+    (out / "leaderboard.md").write_text("old table")
+    real_write = run_mod.write_files
+    staged = []
+
+    def disk_full(results, staging, html=None, key=None):
+        staged.append(Path(staging))
+        real_write(results, staging, html, key)  # every file written, then the disk fills up
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(Path(staging) / "report.html"))
+
+    monkeypatch.setattr(run_mod, "write_files", disk_full)
+    code = main([*CHEAP, "--out", str(out)])
+    captured = capsys.readouterr()
+    assert code == 1
+    assert "constant" in captured.out and "#  controller" in captured.out  # the ranking, printed first
+    assert f"could not write the leaderboard to {str(out)!r}" in captured.err
+    assert os.strerror(errno.ENOSPC) in captured.err
+    assert sorted(p.name for p in out.iterdir()) == ["leaderboard.md", "results.json"]  # the old files, whole
+    assert (out / "results.json").read_text() == "old results" and (out / "leaderboard.md").read_text() == "old table"
+    assert staged and staged[0].parent == tmp_path and not staged[0].exists()
+    assert [p.name for p in tmp_path.iterdir()] == ["board"]  # no staging (or old-copy) directory beside it
+
+    with pytest.raises(OutputError) as err:  # from Python: the error carries the results all the same
+        run_leaderboard("ncap-v1", "test", ["constant"], episodes=1, out=out, report=False)
+    assert err.value.path == str(out) and err.value.results["ranking"] == ["constant"]
+    assert err.value.results["controllers"][0]["status"] == "ok"
+    assert (out / "results.json").read_text() == "old results" and [p.name for p in tmp_path.iterdir()] == ["board"]
+
+
+# -- ties ------------------------------------------------------------------------------------------------
+def test_equal_figures_share_a_rank_whatever_the_names(tmp_path, capsys):
+    """The same controller under two names ties: one rank, in the JSON, the table, the CSV and
+    the Markdown, and the next controller's rank counts both (no order by name is implied)."""
+    from acc_gym.leaderboard.results import markdown, text_table
+
+    out = tmp_path / "board"
+    refs = ["bad_controllers:BrakesAgain", "idm", "bad_controllers:Brakes"]
+    code = main(["leaderboard", "--suite", "ncap-v1", "--controllers", *refs, "--episodes", "1", "--workers", "2",
+                 "--no-report", "--json", "--out", str(out)])
+    assert code == 0
+    printed = {row["controller"]: row for row in json.loads(capsys.readouterr().out)["ranking"]}
+    r = load_results(out)
+    by = {c["name"]: c for c in r["controllers"]}
+    a, b = by["bad_controllers:Brakes"], by["bad_controllers:BrakesAgain"]
+    assert a["status"] == b["status"] == "ok"
+    assert a["summary"] == b["summary"]  # identical figures ...
+    assert a["rank"] == b["rank"] == printed["bad_controllers:Brakes"]["rank"] \
+        == printed["bad_controllers:BrakesAgain"]["rank"]  # ... one rank
+    for c in r["controllers"]:  # a rank is 1 + how many did better, whatever their names
+        better = sum(o["summary"]["overall"]["mean_points"] > c["summary"]["overall"]["mean_points"] + 1e-6
+                     for o in r["controllers"])
+        assert c["rank"] == 1 + better == printed[c["name"]]["rank"], c["name"]
+    rows = {line.split()[1]: line.split()[0] for line in text_table(r).splitlines()[2:]}
+    assert rows["bad_controllers:Brakes"] == rows["bad_controllers:BrakesAgain"] == str(a["rank"])
+    md = {cells[2].strip(): cells[1].strip() for cells in (line.split("|") for line in markdown(r).splitlines()
+                                                           if line.startswith("| ") and not line.startswith("| # |"))}
+    assert md["bad_controllers:Brakes"] == md["bad_controllers:BrakesAgain"] == str(a["rank"])
+    csv_ranks = {line.split(",")[1]: line.split(",")[0] for line in (out / "results.csv").read_text().splitlines()[1:]}
+    assert csv_ranks["bad_controllers:Brakes"] == csv_ranks["bad_controllers:BrakesAgain"] == str(a["rank"])
+
+
+def test_rank_gives_ties_one_rank_and_depends_on_figures_only():
+    from acc_gym.leaderboard.results import rank
+
+    def entry(name, points, status="ok"):
+        return {"name": name, "status": status,
+                "summary": {"overall": {"mean_points": points}} if status == "ok" else None}
+
+    figures = {"zeta": 60.0, "alpha": 60.0 + 5e-7, "mid": 70.0, "low": 10.0}  # zeta and alpha: equal within 1e-6
+    for order in (list(figures), list(reversed(figures))):
+        entries = [entry(n, figures[n]) for n in order] + [entry("broken", None, "failed")]
+        ranking = rank(entries)
+        ranks = {e["name"]: e["rank"] for e in entries}
+        assert ranks == {"mid": 1, "zeta": 2, "alpha": 2, "low": 4, "broken": None}
+        assert ranking[0] == "mid" and set(ranking[1:3]) == {"zeta", "alpha"} and ranking[3:] == ["low", "broken"]
+
+
+def test_a_container_sandbox_is_not_offered(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main([*CHEAP, "--sandbox", "container"])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and "--sandbox" in err and "invalid choice: 'container'" in err
+    assert "process" in err and "bwrap" in err  # the choices there are
+    with pytest.raises(ValueError, match=r"unknown sandbox 'container'; use one of \['process', 'bwrap'\]"):
+        run_leaderboard("ncap-v1", "test", ["constant"], episodes=1, sandbox="container")
