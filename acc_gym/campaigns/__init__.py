@@ -27,8 +27,17 @@ Decisions (details in each module's docstring):
   exists and validates is never run again; a file that does not validate is an error
   naming it (to be deleted by hand), never silently re-run or read as empty -- atomic
   writes mean a kill cannot produce one, so it signals damage worth a look.
+* **Checksums**: each chunk's sha256 is written beside it (``chunk-NNNNNN.sha256``, before
+  the chunk) and recorded in ``campaign.json`` (``chunk_sha256``, the manifest rewritten
+  atomically after each chunk); a chunk whose bytes, ``.sha256`` file and record disagree
+  is refused by name. The file beside the chunk is what survives a lost manifest.
+* **A lost manifest**: a missing or unreadable ``campaign.json`` is rebuilt by running the
+  campaign again with its settings: the chunk files that verify against them (checksum,
+  fingerprint, chunk number, rows) are kept and the rest run; one that does not verify is
+  refused by name, nothing deleted. Campaigns of older acc-gym versions (no code digest
+  or checksums) are refused saying so: run them again in a new directory.
 * **Settings**: pinned in ``campaign.json``; resuming with other settings is an error
-  naming each difference (also for more ``hours``: use a new directory).
+  naming each difference (except more ``hours``, which extend the campaign in place).
 * **Dependencies**: pyarrow is an extra (``campaign``), not core: the simulator, the
   environments and training do not need it; the ``test`` and ``all`` extras include it
   and Dask. ``acc-gym campaign`` says what to install when either is missing.

@@ -8,18 +8,29 @@ finally writes ``summary.json`` (:mod:`~acc_gym.campaigns.summary`). A campaign 
 any point (killed, Ctrl-C, ``max_chunks``) and run again with the same settings finishes
 the missing chunks only: each episode is stored exactly once, and the results are the
 same as an uninterrupted run's.
+
+**A lost manifest.** If ``campaign.json`` is missing, or no longer reads as JSON
+(truncated, overwritten), while chunk files remain, a run with the campaign's settings
+rebuilds it: every chunk file is checked against the settings asked for -- its own
+``.sha256`` file, the fingerprint and chunk number it carries, its rows -- and, only if
+all of them verify, they are adopted (recorded in the new manifest) and the missing
+chunks run; the summary is then the same as an uninterrupted run's. A chunk file that does
+not verify (other settings, damage) stops the run naming it, before anything is written,
+and nothing is deleted: run again with the settings it was written with, or move it away.
+A damaged manifest is kept as ``campaign.json.damaged``.
 """
 
 from __future__ import annotations
 
+import os
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from acc_gym.campaigns import store
 from acc_gym.campaigns.episodes import ChunkTask
 from acc_gym.campaigns.errors import CampaignError, require_distributed, require_pyarrow
-from acc_gym.campaigns.manifest import Settings, build_manifest, check_manifest, compare
+from acc_gym.campaigns.manifest import CHECKSUMS, Settings, build_manifest, check_manifest, compare
 from acc_gym.campaigns.plan import (Chunk, check_hours, check_positive_int, check_root_seed, check_split, chunks,
                                     plan_length, resolve_suite)
 
@@ -37,6 +48,13 @@ class Campaign:
     settings: Settings
     table: object  # pyarrow.Table
     chunks_done: tuple  # chunk numbers with a valid file
+    checksums: dict = field(default_factory=dict)  # chunk file name -> sha256, of each valid chunk file
+
+    @property
+    def unrecorded(self) -> dict:
+        """Valid chunk files whose sha256 the manifest does not record yet (name -> sha256)."""
+        recorded = self.manifest.get(CHECKSUMS, {})
+        return {name: digest for name, digest in self.checksums.items() if name not in recorded}
 
     @property
     def complete(self) -> bool:
@@ -78,21 +96,68 @@ def _check_chunk_files(out_dir: Path, n_chunks: int) -> None:
                                 f".. chunk-{n_chunks - 1:06d}.parquet); move it away")
 
 
+def _has_chunk_files(out_dir: Path) -> bool:
+    folder = out_dir / store.CHUNK_DIR
+    return folder.is_dir() and any(folder.glob("chunk-*"))
+
+
 def load_campaign(out_dir) -> Campaign:
     """A campaign directory's manifest and validated results so far (see :mod:`acc_gym.campaigns.store`)."""
-    pa, _ = require_pyarrow()
+    require_pyarrow()
     out_dir = Path(out_dir)
     if not (out_dir / store.MANIFEST).is_file():
+        if _has_chunk_files(out_dir):
+            raise CampaignError(f"{out_dir} holds chunk files but no {store.MANIFEST}; to rebuild it, "
+                                f"{store.MANIFEST_ADVICE}")
         raise CampaignError(f"{out_dir} holds no campaign ({store.MANIFEST} not found)")
     manifest, settings = _read_manifest(out_dir)
+    return _load(out_dir, manifest, settings)
+
+
+def _load(out_dir: Path, manifest: dict, settings: Settings) -> Campaign:
+    """The campaign of ``manifest`` with every chunk file there validated."""
+    pa, _ = require_pyarrow()
     _check_chunk_files(out_dir, manifest["n_chunks"])
-    tables, done = [], []
+    recorded = manifest.get(CHECKSUMS, {})
+    tables, done, checksums = [], [], {}
     for chunk in chunks(manifest["n_scenarios"], manifest["chunk_size"]):
         if store.chunk_exists(out_dir, chunk):
-            tables.append(store.read_chunk(out_dir, chunk, settings.fingerprint))
+            name = store.chunk_path(out_dir, chunk.number).name
+            tables.append(store.read_chunk(out_dir, chunk, settings.fingerprint, recorded.get(name)))
             done.append(chunk.number)
+            checksums[name] = store.read_checksum(out_dir, chunk.number)
     table = pa.concat_tables(tables) if tables else store.schema().empty_table()
-    return Campaign(out_dir, manifest, settings, table, tuple(done))
+    return Campaign(out_dir, manifest, settings, table, tuple(done), checksums)
+
+
+def _record(out_dir: Path, manifest: dict, checksums: dict) -> dict:
+    """The manifest with ``checksums`` (chunk file name -> sha256) recorded, written atomically."""
+    manifest = {**manifest, CHECKSUMS: dict(sorted({**manifest.get(CHECKSUMS, {}), **checksums}.items()))}
+    store.write_json(out_dir / store.MANIFEST, manifest)
+    return manifest
+
+
+def _rebuild(out_dir: Path, settings: Settings, suite_obj, damaged: CampaignError | None) -> dict:
+    """A new manifest for ``settings`` when ``campaign.json`` is missing (``damaged`` None) or unreadable,
+    adopting every chunk file there -- each must verify against ``settings`` (checksum, fingerprint, chunk
+    number, rows) -- and written only once all do; a damaged manifest is kept beside it."""
+    path = out_dir / store.MANIFEST
+    n, seconds = plan_length(suite_obj, settings.split, settings.root_seed, settings.hours)
+    manifest = build_manifest(settings, n, len(chunks(n, settings.chunk_size)), seconds)
+    try:
+        found = _load(out_dir, manifest, settings)
+    except CampaignError as exc:
+        state = "is missing" if damaged is None else "is damaged"
+        raise CampaignError(f"{path} {state}, and it cannot be rebuilt from the chunk files with the settings asked "
+                            f"for: {str(exc).replace(store.DELETE_HINT, '')}. If the chunk files were written with "
+                            f"other settings (suite, split, root seed, controller or its code, chunk size, hours, "
+                            f"acc-gym version), run again with those; if that file is damaged or foreign, move it "
+                            f"away (or delete it) to run its chunk again. Nothing was written or deleted") from None
+    manifest[CHECKSUMS] = dict(sorted(found.checksums.items()))
+    if damaged is not None:
+        os.replace(path, path.with_name(store.MANIFEST + ".damaged"))
+    store.write_json(path, manifest)
+    return manifest
 
 
 def _extend(out_dir: Path, manifest: dict, existing: Settings, settings: Settings, suite_obj) -> dict:
@@ -108,11 +173,13 @@ def _extend(out_dir: Path, manifest: dict, existing: Settings, settings: Setting
     old_n, size = int(manifest["n_scenarios"]), settings.chunk_size
     if n < old_n:  # cannot happen for one stream; refuse rather than mix
         raise CampaignError(f"{path}: {settings.hours:g} h plan {n} scenarios, fewer than the {old_n} there")
+    checksums = dict(manifest.get(CHECKSUMS, {}))
     if old_n % size:
         partial = old_n // size
         for p in (store.chunk_path(out_dir, partial), store.checksum_path(out_dir, partial)):
             p.unlink(missing_ok=True)
-    new = build_manifest(settings, n, len(chunks(n, size)), seconds)
+        checksums.pop(store.chunk_path(out_dir, partial).name, None)
+    new = build_manifest(settings, n, len(chunks(n, size)), seconds, checksums)
     store.write_json(path, new)
     return new
 
@@ -177,20 +244,27 @@ def run_campaign(suite, hours: float, controller: str, out_dir, *, split: str = 
                         chunk_size=chunk_size, acc_gym_version=acc_gym.__version__)
     out_dir = Path(out_dir)
     manifest_path = out_dir / store.MANIFEST
+    damaged = None
     if manifest_path.is_file():
-        manifest, existing = _read_manifest(out_dir)
+        try:
+            manifest, existing = _read_manifest(out_dir)
+        except store.UnreadableFileError as exc:  # truncated, overwritten: rebuilt from the chunk files below
+            damaged = exc
+    if manifest_path.is_file() and damaged is None:
         if existing.hours != settings.hours and replace(existing, hours=settings.hours) == settings:
             manifest = _extend(out_dir, manifest, existing, settings, suite_obj)
         else:
             compare(existing, settings, manifest_path)
+    elif damaged is not None or _has_chunk_files(out_dir):
+        manifest = _rebuild(out_dir, settings, suite_obj, damaged)
     else:
-        if (out_dir / store.CHUNK_DIR).is_dir() and any((out_dir / store.CHUNK_DIR).glob("chunk-*")):
-            raise CampaignError(f"{out_dir} holds chunk files but no {store.MANIFEST}; use another output directory")
         n, seconds = plan_length(suite_obj, split, settings.root_seed, hours)
         manifest = build_manifest(settings, n, len(chunks(n, chunk_size)), seconds)
         store.write_json(manifest_path, manifest)
     store.remove_stray_temps(out_dir)
     done = load_campaign(out_dir)  # validates every chunk file already there
+    if done.unrecorded:  # written by a run killed before it recorded them, or before manifests recorded checksums
+        manifest = _record(out_dir, manifest, done.unrecorded)
     todo = done.missing_chunks()
     if max_chunks is not None:
         todo = todo[:max_chunks]
@@ -203,7 +277,8 @@ def run_campaign(suite, hours: float, controller: str, out_dir, *, split: str = 
     results = execute(tasks, workers=workers, scheduler=scheduler, fingerprint=settings.fingerprint)
     try:
         for task, rows in results:
-            store.write_chunk(out_dir, task.chunk, rows, settings.fingerprint)
+            digest = store.write_chunk(out_dir, task.chunk, rows, settings.fingerprint)
+            manifest = _record(out_dir, manifest, {store.chunk_path(out_dir, task.chunk.number).name: digest})
             n_done += 1
             if on_chunk is not None:
                 on_chunk(task.chunk.number, n_done, total)

@@ -10,15 +10,24 @@ removed when the campaign resumes. One campaign process per directory.
 *before* the chunk file itself is moved into place (both atomically), and checked on
 every read: a flipped bit inside a Parquet page -- which Parquet itself may read without
 complaint, as a different number -- is refused naming the file. A crash between the two
-writes leaves a checksum without its chunk, and the chunk simply runs again.
+writes leaves a checksum without its chunk, and the chunk simply runs again. Once the
+chunk file is in place, its sha256 is also recorded in ``campaign.json``
+(:data:`acc_gym.campaigns.manifest.CHECKSUMS`, the manifest rewritten atomically), and a
+chunk whose ``.sha256`` file disagrees with that record -- the pair replaced after the
+campaign recorded it -- is refused by name too. The ``.sha256`` file is what lets a
+chunk be verified when ``campaign.json`` itself is lost (see
+:func:`acc_gym.campaigns.campaign.run_campaign`).
 
 **Validation.** A chunk file counts only if its checksum matches, it reads as Parquet, has exactly the
 expected schema (:data:`acc_gym.campaigns.episodes.COLUMNS`), carries the campaign's
-fingerprint and chunk number in its metadata, and holds one row for each of the chunk's
-scenario indices, in order. Since writes are atomic, a file failing these checks was
+fingerprint and chunk number in its metadata, holds one row for each of the chunk's
+scenario indices, in order, and its checksum is the one the manifest records (if it records one). Since writes
+are atomic, a file failing these checks was
 damaged or put there by something else: it raises :class:`CampaignError` naming the file
 (and saying to delete it to run that chunk again) instead of being re-run silently or,
-worse, read as empty. The same holds for ``campaign.json`` and ``summary.json``.
+worse, read as empty. The same holds for ``summary.json``. A ``campaign.json`` that no
+longer reads as JSON raises :class:`UnreadableFileError`; running the campaign again with
+its settings rebuilds it from the chunk files that verify.
 """
 
 from __future__ import annotations
@@ -38,6 +47,12 @@ SUMMARY = "summary.json"
 CHUNK_DIR = "chunks"
 META_FINGERPRINT = b"acc_gym.campaign.fingerprint"
 META_CHUNK = b"acc_gym.campaign.chunk"
+
+
+class UnreadableFileError(CampaignError):
+    """A JSON file of the campaign (``campaign.json``, ``summary.json``) is not readable JSON
+    (truncated, overwritten, not an object): its content is lost, unlike one that reads but
+    does not check out."""
 
 
 def chunk_path(out_dir, number: int) -> Path:
@@ -76,10 +91,13 @@ def write_json_if_changed(path, obj) -> bool:
     return True
 
 
-# what to do about a damaged file: the summary is derived from the chunks, the manifest is not
+# what to do about a damaged file: the summary is derived from the chunks; the manifest is rebuilt from the
+# settings asked for, keeping the chunk files that verify against them (each carries its checksum and fingerprint)
+MANIFEST_ADVICE = ("run the campaign again with the settings it was started with: the manifest is rebuilt from "
+                   "them, every chunk file whose checksum and fingerprint verify is kept, and any that does not is "
+                   "refused by name, nothing deleted (or restore the manifest from a copy)")
 _ADVICE = {"campaign summary": "delete it (the next run or summarise_campaign rewrites it from the chunk files)",
-           "campaign manifest": "restore it from a copy, or start the campaign again in an empty directory (its "
-                                "chunk files cannot be trusted without the manifest they were run under)"}
+           "campaign manifest": MANIFEST_ADVICE}
 
 
 def read_json(path, what: str) -> dict:
@@ -88,9 +106,9 @@ def read_json(path, what: str) -> dict:
     try:
         obj = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise CampaignError(f"{what} {path} is corrupted or truncated ({exc}); {advice}") from None
+        raise UnreadableFileError(f"{what} {path} is corrupted or truncated ({exc}); {advice}") from None
     if not isinstance(obj, dict):
-        raise CampaignError(f"{what} {path} is corrupted: not a JSON object")
+        raise UnreadableFileError(f"{what} {path} is corrupted: not a JSON object; {advice}")
     return obj
 
 
@@ -110,8 +128,9 @@ def schema():
     return pa.schema([pa.field(name, getattr(pa, kind)(), nullable=nullable) for name, kind, nullable, _ in COLUMNS])
 
 
-def write_chunk(out_dir, chunk: Chunk, rows: list[dict], fingerprint: str) -> Path:
-    """Write a chunk's rows to its Parquet file (atomically); refuse rows that do not match the chunk."""
+def write_chunk(out_dir, chunk: Chunk, rows: list[dict], fingerprint: str) -> str:
+    """Write a chunk's rows to its Parquet file (atomically), its sha256 first to its ``.sha256``
+    file; refuse rows that do not match the chunk. Returns the sha256 (for the manifest)."""
     pa, pq = require_pyarrow()
     got = [r["index"] for r in rows]
     if got != list(chunk.indices):
@@ -122,32 +141,43 @@ def write_chunk(out_dir, chunk: Chunk, rows: list[dict], fingerprint: str) -> Pa
     buf = io.BytesIO()
     pq.write_table(table, buf)
     data = buf.getvalue()
+    digest = sha256(data)
     path = chunk_path(out_dir, chunk.number)
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
-        atomic_write(checksum_path(out_dir, chunk.number), lambda f: f.write((sha256(data) + "\n").encode()))
+        atomic_write(checksum_path(out_dir, chunk.number), lambda f: f.write((digest + "\n").encode()))
         atomic_write(path, lambda f: f.write(data))
     except OSError as exc:  # a full disk, a read-only directory: name the file, keep what was written
         raise CampaignError(f"could not write chunk file {path}: {exc.strerror or exc} (errno {exc.errno}); the "
                             f"chunk files written so far are kept, run the campaign again to finish") from None
-    return path
+    return digest
 
 
 def sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def read_chunk(out_dir, chunk: Chunk, fingerprint: str):
-    """The chunk's rows as an Arrow table, after validating the file (see the module docstring)."""
+DELETE_HINT = "; delete it to run that chunk again"  # what to do about a chunk file that does not validate
+
+
+def read_checksum(out_dir, number: int) -> str:
+    """The sha256 in chunk ``number``'s ``.sha256`` file (refused by name if missing or unreadable)."""
+    path = checksum_path(out_dir, number)
+    try:
+        return path.read_text().strip()
+    except (FileNotFoundError, UnicodeDecodeError):
+        raise CampaignError(f"chunk file {chunk_path(out_dir, number)} has no checksum ({path.name} is missing or "
+                            f"unreadable){DELETE_HINT}") from None
+
+
+def read_chunk(out_dir, chunk: Chunk, fingerprint: str, in_manifest: str | None = None):
+    """The chunk's rows as an Arrow table, after validating the file (see the module docstring);
+    ``in_manifest``: the sha256 the manifest records for it (None: none recorded yet)."""
     pa, pq = require_pyarrow()
     path = chunk_path(out_dir, chunk.number)
-    hint = "; delete it to run that chunk again"
+    hint = DELETE_HINT
     data = path.read_bytes()  # FileNotFoundError: not run yet
-    try:
-        recorded = checksum_path(out_dir, chunk.number).read_text().strip()
-    except (FileNotFoundError, UnicodeDecodeError):
-        raise CampaignError(f"chunk file {path} has no checksum ({checksum_path(out_dir, chunk.number).name} is "
-                            f"missing or unreadable){hint}") from None
+    recorded = read_checksum(out_dir, chunk.number)
     if sha256(data) != recorded:
         raise CampaignError(f"chunk file {path} is damaged: its sha256 {sha256(data)[:16]}... is not the one recorded "
                             f"when it was written ({recorded[:16]}...){hint}")
@@ -170,6 +200,10 @@ def read_chunk(out_dir, chunk: Chunk, fingerprint: str):
     if table.column("index").to_pylist() != list(chunk.indices):
         raise CampaignError(f"chunk file {path} holds {table.num_rows} rows, not one for each of scenarios "
                             f"{chunk.start}..{chunk.stop - 1}{hint}")
+    if in_manifest is not None and in_manifest != recorded:
+        raise CampaignError(f"chunk file {path} and its {checksum_path(out_dir, chunk.number).name} agree (sha256 "
+                            f"{recorded[:16]}...), but {MANIFEST} records {in_manifest[:16]}... for it: the pair was "
+                            f"replaced after the campaign recorded the chunk{hint} (and its .sha256 file)")
     return table
 
 

@@ -9,7 +9,9 @@ and its contour distances to the road edge (``d2``) and the carriageway's bounda
 
 A recorded drive is enough: ``EgoTrace.from_csv(path)`` reads a CSV with a header and
 the columns ``t, v, a, gap, v_lead`` (optional ``a_lead, lead_id, a_y, d2, d3``); an empty
-``gap`` cell or ``inf`` means no vehicle ahead.
+``gap`` cell or ``inf`` means no vehicle ahead. Blank lines are skipped; every error
+names the file and the line the sample was read from (the header is line 1), and a column
+named twice in the header is refused rather than one of them silently winning.
 """
 
 from __future__ import annotations
@@ -68,6 +70,55 @@ def _all_finite(col):  # pragma: no cover - compiled
 _LANE_CENTRED = Road(3.75, 1).d2(0.0, VEHICLE_WIDTH)  # [m] D2 = D3 of a lane-centred car, paper 003's road
 
 
+def _read_csv(path: Path) -> tuple[dict[str, np.ndarray], list[int]]:
+    """The columns of a CSV trace and, for each sample, the line of the file it starts on (the
+    header's line is 1; blank lines are skipped). Errors name the file, the line and the column."""
+    # utf-8-sig: a byte-order mark (what spreadsheet programs write) is not part of the first column's name
+    with path.open(newline="", encoding="utf-8-sig") as fh:
+        reader = csv.reader(fh)
+        try:
+            header = [h.strip() for h in next(reader, [])]
+        except csv.Error as exc:
+            raise ValueError(f"{path}, line 1: not a readable CSV header ({exc})") from None
+        missing = [c for c in REQUIRED_COLUMNS if c not in header]
+        if missing:
+            raise ValueError(f"{path}: missing column(s) {missing}; a trace needs {list(REQUIRED_COLUMNS)}")
+        unknown = [c for c in header if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
+        if unknown:
+            raise ValueError(f"{path}: unknown column(s) {unknown}")
+        repeated = sorted({c for c in header if header.count(c) > 1})
+        if repeated:
+            raise ValueError(f"{path}: column(s) {repeated} appear more than once in the header (line 1)")
+        cols: dict[str, list[float]] = {c: [] for c in header}
+        lines: list[int] = []
+        while True:
+            line = reader.line_num + 1  # where the next record starts
+            try:
+                cells = next(reader, None)
+            except csv.Error as exc:  # a NUL byte, a cell over the csv module's size limit, ...
+                raise ValueError(f"{path}, line {reader.line_num}: not a readable CSV record ({exc})") from None
+            if cells is None:
+                break
+            if not cells:  # a blank line (what csv.DictReader skips too)
+                continue
+            if len(cells) > len(header):
+                raise ValueError(f"{path}, line {line}: more cells than columns ({len(cells)} > {len(header)})")
+            lines.append(line)
+            for k, key in enumerate(header):
+                text = cells[k].strip() if k < len(cells) else ""
+                if text == "" and key in ("gap", "v_lead", "a_lead", "lead_id"):
+                    value = {"gap": np.inf, "lead_id": -1.0}.get(key, 0.0)
+                else:
+                    try:
+                        value = float(text)
+                    except ValueError:
+                        raise ValueError(f"{path}, line {line}: column {key!r} is not a number: {text!r}") from None
+                    if np.isnan(value):
+                        raise ValueError(f"{path}, line {line}: column {key!r} is NaN")
+                cols[key].append(value)
+    return {k: np.array(v, dtype=float) for k, v in cols.items()}, lines
+
+
 @dataclass(frozen=True)
 class EgoTrace:
     """One episode as seen from the ego (arrays of shape ``(n,)``)."""
@@ -106,11 +157,14 @@ class EgoTrace:
                 raise ValueError(f"trace column {f.name!r} is NaN at sample {k} (t index {k})")
             if f.name == "gap":
                 if np.any(arr == -np.inf):
-                    raise ValueError("trace column 'gap' must not be -inf")
+                    k = int(np.flatnonzero(arr == -np.inf)[0])
+                    raise ValueError(f"trace column 'gap' must not be -inf, got -inf at sample {k}")
             elif f.name == "v_lead":
                 arr = np.where(np.isfinite(np.asarray(self.gap, float)), arr, 0.0)
                 if not np.all(np.isfinite(arr)):
-                    raise ValueError("trace column 'v_lead' must be finite where a vehicle is ahead")
+                    k = int(np.flatnonzero(~np.isfinite(arr))[0])
+                    raise ValueError(f"trace column 'v_lead' must be finite where a vehicle is ahead, got "
+                                     f"{float(arr[k])!r} at sample {k}")
             elif not np.all(np.isfinite(arr)):
                 k = int(np.flatnonzero(~np.isfinite(arr))[0])
                 raise ValueError(f"trace column {f.name!r} must be finite, got {float(arr[k])!r} at sample {k}")
@@ -193,47 +247,20 @@ class EgoTrace:
         """Read a CSV trace (see the module docstring)."""
         path = Path(path)
         try:
-            return cls._from_csv(path, set_speed, time_gap)
+            cols, lines = _read_csv(path)
         except UnicodeDecodeError as exc:
             raise ValueError(f"{path}: not UTF-8 text (byte {exc.start}: {exc.reason})") from None
+        try:
+            return cls(**cols, set_speed=set_speed, time_gap=time_gap)
         except ValueError as exc:
-            text = str(exc)
-            if text.startswith(str(path)):
-                raise
-            # a check of the whole trace: name the file, and the CSV line of a sample (header = line 1)
-            text = re.sub(r"sample (\d+)", lambda m: f"sample {m.group(1)} (line {int(m.group(1)) + 2})", text)
-            raise ValueError(f"{path}: {text}") from None
+            # a check of the whole trace: name the file, and the CSV line each sample was read from
+            # (blank lines are skipped and a quoted cell may span lines, so it is not the sample + 2)
+            def with_line(m: re.Match) -> str:
+                k = int(m.group(1))
+                return f"sample {k} (line {lines[k]})" if k < len(lines) else m.group(0)
 
-    @classmethod
-    def _from_csv(cls, path: Path, set_speed, time_gap) -> "EgoTrace":
-        # utf-8-sig: a byte-order mark (what spreadsheet programs write) is not part of the first column's name
-        with path.open(newline="", encoding="utf-8-sig") as fh:
-            reader = csv.DictReader(fh)
-            header = [h.strip() for h in (reader.fieldnames or [])]
-            missing = [c for c in REQUIRED_COLUMNS if c not in header]
-            if missing:
-                raise ValueError(f"{path}: missing column(s) {missing}; a trace needs {list(REQUIRED_COLUMNS)}")
-            unknown = [c for c in header if c not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
-            if unknown:
-                raise ValueError(f"{path}: unknown column(s) {unknown}")
-            cols: dict[str, list[float]] = {c: [] for c in header}
-            for line, row in enumerate(reader, start=2):
-                for raw_key, cell in row.items():
-                    if raw_key is None:
-                        raise ValueError(f"{path}, line {line}: more cells than columns")
-                    key = raw_key.strip()
-                    text = (cell or "").strip()
-                    if text == "" and key in ("gap", "v_lead", "a_lead", "lead_id"):
-                        value = {"gap": np.inf, "lead_id": -1.0}.get(key, 0.0)
-                    else:
-                        try:
-                            value = float(text)
-                        except ValueError:
-                            raise ValueError(f"{path}, line {line}: column {key!r} is not a number: {text!r}") from None
-                        if np.isnan(value):
-                            raise ValueError(f"{path}, line {line}: column {key!r} is NaN")
-                    cols[key].append(value)
-        return cls(**{k: np.array(v) for k, v in cols.items()}, set_speed=set_speed, time_gap=time_gap)
+            text = re.sub(r"sample (\d+)", with_line, str(exc))
+            raise ValueError(f"{path}: {text}") from None
 
     def to_csv(self, path) -> None:
         """Write the trace as CSV (``inf`` gaps as empty cells)."""

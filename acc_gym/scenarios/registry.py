@@ -53,11 +53,13 @@ class ScenarioType:
 
     def build(self, params: dict | None = None, seed: int = 0, drivers: str = "typical") -> Scenario:
         """This type's scenario with ``params`` (missing ones drawn) and ``seed``."""
-        if drivers not in DRIVER_CHOICES:
+        seed = check_seed(seed)
+        params = check_params(self.id, params)
+        if not isinstance(drivers, str) or drivers not in DRIVER_CHOICES:
             raise ValueError(f"unknown drivers {drivers!r}; use one of {list(DRIVER_CHOICES)}")
         param_rng, build_rng = scenario_rngs(self.id, seed)
         values = self.sample_params(param_rng, params)
-        return self.builder(self, values, build_rng, drivers, int(seed))
+        return self.builder(self, values, build_rng, drivers, seed)
 
     @property
     def parameter_names(self) -> list[str]:
@@ -68,7 +70,7 @@ class ScenarioType:
 
     def sample_params(self, rng: np.random.Generator, given: dict | None = None) -> dict:
         """Draw the parameters not in ``given`` (in declaration order) and merge."""
-        given = dict(given or {})
+        given = check_params(self.id, given)
         unknown = set(given) - set(self.parameter_names)
         if unknown:
             raise ValueError(f"unknown parameter(s) {sorted(unknown)} for scenario {self.id!r}; "
@@ -98,6 +100,27 @@ def _number(sid: str, name: str, value) -> float:
     return _finite(f"parameter {name!r} of {sid!r}", value)
 
 
+def check_seed(seed) -> int:
+    """``seed`` as an int: a non-negative integer (Python's or numpy's; not a bool, a float or text)."""
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r} ({type(seed).__name__})")
+    return int(seed)
+
+
+def check_params(scenario_id: str, params) -> dict:
+    """``params`` as a new dict: None (draw them all) or a mapping of parameter names (strings) to values."""
+    if params is None:
+        return {}
+    if not isinstance(params, dict):
+        raise ValueError(f"params of scenario {scenario_id!r} must be a dict of parameter name -> value (or None), "
+                         f"got {params!r} ({type(params).__name__})")
+    for name in params:
+        if not isinstance(name, str):
+            raise ValueError(f"params of scenario {scenario_id!r}: parameter names must be strings, got {name!r} "
+                             f"({type(name).__name__})")
+    return dict(params)
+
+
 REGISTRY: dict[str, ScenarioType] = {}
 
 
@@ -110,6 +133,8 @@ def register(stype: ScenarioType) -> ScenarioType:
 
 def scenario_type(scenario_id: str) -> ScenarioType:
     _load()
+    if not isinstance(scenario_id, str):
+        raise ValueError(f"a scenario id must be a string, got {scenario_id!r} ({type(scenario_id).__name__})")
     try:
         return REGISTRY[scenario_id]
     except KeyError:
@@ -148,9 +173,8 @@ def scenario_rngs(scenario_id: str, seed: int) -> tuple[np.random.Generator, np.
     """The two generators private to (id, seed): one for the parameters, one for the builder
     (surrounding drivers, speed profiles), spawned from ``SeedSequence([crc32(id), seed])`` so
     that giving some parameters explicitly never shifts the builder's draws."""
-    if int(seed) != seed or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    params, builder = np.random.SeedSequence([zlib.crc32(scenario_id.encode()), int(seed)]).spawn(2)
+    seed = check_seed(seed)
+    params, builder = np.random.SeedSequence([zlib.crc32(scenario_id.encode()), seed]).spawn(2)
     return np.random.default_rng(params), np.random.default_rng(builder)
 
 

@@ -37,6 +37,8 @@ DRIVER_MODELS = ("mpc", "profile", *sorted(MODELS))
 MAX_DURATION = 7200.0  # [s] two hours: the env allocates the episode's record at reset
 MAX_SPEED = 70.0  # [m/s] 252 km/h: initial speeds, profile speeds, the set speed (the observation's bound)
 MAX_TIME_GAP = 10.0  # [s]
+# driver parameters that are speeds [m/s] (desired / set / top speed): bounded like the vehicles' speeds
+DRIVER_SPEED_PARAMS = ("v_desired", "v_max", "v_set")
 _NUMBER = (int, float, np.integer, np.floating)
 
 
@@ -89,6 +91,10 @@ class DriverSpec:
         if not isinstance(self.params, dict):
             raise ValueError(f"driver params must be a JSON object, got {type(self.params).__name__}")
         params = {str(k): _finite(f"driver params[{k!r}]", v) for k, v in self.params.items()}
+        for name in DRIVER_SPEED_PARAMS:
+            if name in params:
+                _finite(f"driver params[{name!r}] (a speed of model {self.model!r})", params[name], nonnegative=True,
+                        at_most=MAX_SPEED)
         if self.model == "profile" and params:
             raise ValueError(f"a 'profile' driver takes no parameters, got {sorted(params)}")
         object.__setattr__(self, "params", params)

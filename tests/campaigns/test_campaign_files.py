@@ -186,9 +186,18 @@ def test_a_full_disk_names_the_file_and_keeps_what_was_written(tmp_path, monkeyp
 
 def test_a_damaged_manifest_gives_advice_that_works(copy, tmp_path, reference):
     path = copy / "campaign.json"
-    path.write_text(path.read_text()[:50])
-    with pytest.raises(CampaignError, match="restore it from a copy, or start the campaign again in an empty "
-                                            "directory") as err:
+    text = path.read_text()
+    path.write_text(text[:50])
+    with pytest.raises(CampaignError, match="run the campaign again with the settings it was started with: the "
+                                            "manifest is rebuilt from them, every chunk file whose checksum and "
+                                            "fingerprint verify is kept") as err:
         load_campaign(copy)
     assert "rewritten from the chunk files" not in str(err.value)
-    assert _run(tmp_path / "fresh") == reference[1]  # the advice: an empty directory
+    chunk_files = {p.name: p.read_bytes() for p in (copy / "chunks").iterdir()}
+    ran = []
+    assert _run(copy, on_chunk=lambda *a: ran.append(a)) == reference[1]  # the advice: run again, same settings
+    assert ran == []  # every chunk verified and was kept, byte for byte
+    assert {p.name: p.read_bytes() for p in (copy / "chunks").iterdir()} == chunk_files
+    assert json.loads(path.read_text()) == json.loads(text)  # the manifest as it was
+    assert (copy / "campaign.json.damaged").read_text() == text[:50]  # the damaged one kept, not lost
+    assert _run(tmp_path / "fresh") == reference[1]  # an empty directory still works too

@@ -169,3 +169,61 @@ def test_a_csv_that_is_not_utf8_is_named(tmp_path):
     path.write_bytes("t,v,a,gap,v_lead\n0,1,0,5,1\n0.2,1,0,5,1 \xe9\n".encode("latin-1"))
     with pytest.raises(ValueError, match=r"latin1\.csv: not UTF-8 text \(byte \d+"):
         EgoTrace.from_csv(path)
+
+
+@pytest.mark.parametrize("body,words", [
+    # a blank line after the header and another between samples: the reader skips them, the lines still count
+    ("t,v,a,gap,v_lead\n\n0,1,0,5,1\n\n0.2,-3,0,5,1\n", r"must be >= 0, got -3.0 at sample 1 \(line 5\)"),
+    ("t,v,a,gap,v_lead\n0,1,0,5,1\n\n\n0.4,1,0,5,1\n0.2,1,0,5,1\n", r"strictly increasing \(sample 2 \(line 6\): "),
+    ("t,v,a,gap,v_lead\n0,1,0,5,1\n\n0.2,1,0,5,nan\n", r"line 4: column 'v_lead' is NaN"),
+    ("t,v,a,gap,v_lead\n0,1,0,5,1\n\n0.2,1,0,5,1,9\n", r"line 4: more cells than columns"),
+    # a quoted cell spanning two lines: the next sample starts two lines further on
+    ('t,v,a,gap,v_lead\n0,1,0,5,"1\n"\n0.2,inf,0,5,1\n', r"'v' must be finite, got inf at sample 1 \(line 4\)"),
+])
+def test_lines_are_the_files_own_with_blank_lines(tmp_path, body, words):
+    path = tmp_path / "drive.csv"
+    path.write_text(body)
+    with pytest.raises(ValueError, match=words) as err:
+        EgoTrace.from_csv(path)
+    assert str(err.value).startswith(str(path))
+
+
+def test_an_infinite_v_lead_names_the_sample_and_the_line(tmp_path):
+    path = tmp_path / "drive.csv"
+    path.write_text("t,v,a,gap,v_lead\n0,20,0,30,20\n0.2,20,0,30,20\n\n0.4,20,0,30,inf\n")
+    with pytest.raises(ValueError, match=r"drive.csv: trace column 'v_lead' must be finite where a vehicle is ahead, "
+                                         r"got inf at sample 2 \(line 5\)"):
+        EgoTrace.from_csv(path)
+    path.write_text("t,v,a,gap,v_lead\n0,20,0,30,20\n0.2,20,0,-inf,20\n")
+    with pytest.raises(ValueError, match=r"'gap' must not be -inf, got -inf at sample 1 \(line 3\)"):
+        EgoTrace.from_csv(path)
+    path.write_text("t,v,a,gap,v_lead\n0,20,0,30,20\n0.2,20,0,inf,inf\n")  # no vehicle ahead: v_lead ignored
+    assert EgoTrace.from_csv(path).v_lead[1] == 0.0
+
+
+def test_an_infinite_v_lead_in_arrays_names_the_sample():
+    c = columns()
+    c["v_lead"][4] = -np.inf
+    with pytest.raises(ValueError, match=r"'v_lead' must be finite where a vehicle is ahead, got -inf at sample 4"):
+        EgoTrace(**c)
+
+
+def test_a_repeated_column_is_refused_not_silently_overwritten(tmp_path):
+    path = tmp_path / "drive.csv"
+    path.write_text("t,v,a,gap,v_lead,v\n0,20,0,30,20,5\n0.2,20,0,30,20,5\n")
+    with pytest.raises(ValueError, match=r"drive.csv: column\(s\) \['v'\] appear more than once in the header"):
+        EgoTrace.from_csv(path)
+
+
+def test_an_unreadable_csv_record_names_the_file_and_line(tmp_path):
+    """The csv module's own errors (here a cell over its size limit) are not ValueErrors: named, not raw."""
+    import csv
+
+    path = tmp_path / "drive.csv"
+    path.write_text("t,v,a,gap,v_lead\n0,20,0,30,20\n0.2,20,0,30," + "9" * 50 + "\n")
+    old = csv.field_size_limit(10)
+    try:
+        with pytest.raises(ValueError, match=r"drive.csv, line 3: not a readable CSV record"):
+            EgoTrace.from_csv(path)
+    finally:
+        csv.field_size_limit(old)

@@ -43,6 +43,8 @@ def changed(doc, path, value):
     (("vehicles", 1, "v0"), 1e5, f"POV.v0 \\(initial speed\\) must be at most {MAX_SPEED:g}"),
     (("vehicles", 1, "x0"), -10.0, "POV starts behind or overlapping the ego in its lane"),
     (("vehicles", 1, "lane"), 0.5, r"POV.lane \(a lane index\) must be a non-negative integer, got 0.5"),
+    (("vehicles", 1, "driver", "params", "v_desired"), 1e5,
+     rf"driver params\['v_desired'\] \(a speed of model 'mpc'\) must be at most {MAX_SPEED:g}, got 100000.0"),
 ])
 def test_bad_values_are_refused_naming_the_field(doc, path, value, words):
     with pytest.raises(ValueError, match=words):
@@ -66,3 +68,85 @@ def test_deeply_nested_json_is_named():
 def test_the_valid_document_still_round_trips(doc):
     sc = Scenario.from_dict(doc)
     assert Scenario.from_json(json.dumps(doc)) == sc and sc.to_dict() == doc
+
+
+# ----------------------------------------------------------------------------- build(id, params, seed, drivers)
+@pytest.mark.parametrize("kwargs, words", [
+    ({"seed": "abc"}, r"seed must be a non-negative integer, got 'abc' \(str\)"),
+    ({"seed": None}, r"seed must be a non-negative integer, got None \(NoneType\)"),
+    ({"seed": True}, r"seed must be a non-negative integer, got True \(bool\)"),
+    ({"seed": 3.0}, r"seed must be a non-negative integer, got 3.0 \(float\)"),
+    ({"seed": -1}, r"seed must be a non-negative integer, got -1"),
+    ({"params": [1, 2]}, r"params of scenario 'singlelane/2/car-following' must be a dict .*got \[1, 2\] \(list\)"),
+    ({"params": "gap=3"}, r"params of scenario .* must be a dict .*got 'gap=3' \(str\)"),
+    ({"params": {3: 1.0}}, r"parameter names must be strings, got 3 \(int\)"),
+    ({"params": {"duration": "30"}}, r"parameter 'duration' of '.*' must be a number, got '30'"),
+    ({"drivers": ["idm"]}, r"unknown drivers \['idm'\]"),
+])
+def test_build_names_a_bad_seed_or_params(kwargs, words):
+    with pytest.raises(ValueError, match=words):
+        build("singlelane/2/car-following", **kwargs)
+
+
+def test_build_accepts_numpy_integer_seeds_and_no_params():
+    import numpy as np
+
+    sc = build("singlelane/2/car-following", None, np.int64(3))
+    assert sc == build("singlelane/2/car-following", {}, 3) and type(sc.seed) is int
+
+
+def test_a_scenario_id_that_is_not_text_is_named():
+    with pytest.raises(ValueError, match=r"a scenario id must be a string, got None \(NoneType\)"):
+        build(None)
+
+
+# ----------------------------------------------------------------------------- surrounding drivers' speeds
+@pytest.mark.parametrize("model, name", [("idm", "v_desired"), ("gipps", "v_desired"), ("acc", "v_set"),
+                                         ("mpc", "v_desired"), ("mpc", "v_max")])
+def test_driver_speed_parameters_are_bounded_like_vehicle_speeds(model, name):
+    from acc_gym.scenarios.spec import DriverSpec
+
+    with pytest.raises(ValueError, match=rf"driver params\['{name}'\] \(a speed of model '{model}'\) must be at "
+                                         rf"most {MAX_SPEED:g}, got 100000.0"):
+        DriverSpec(model, {name: 1e5})
+    with pytest.raises(ValueError, match=rf"driver params\['{name}'\] .* must be >= 0, got -1.0"):
+        DriverSpec(model, {name: -1.0})
+    assert DriverSpec(model, {name: MAX_SPEED}).params[name] == MAX_SPEED  # the limit itself is allowed
+
+
+def test_every_speed_parameter_of_every_driver_model_is_bounded():
+    """A model's speed parameters are its fields named ``v_*``: each must be in the bounded list."""
+    from dataclasses import fields
+
+    from acc_gym.drivers.baselines import MODELS
+    from acc_gym.drivers.mpc import MPCDriverParams
+    from acc_gym.scenarios.spec import DRIVER_SPEED_PARAMS
+
+    names = {f.name for cls in [MPCDriverParams, *(m.params_type for m in MODELS.values())] for f in fields(cls)}
+    speeds = {n for n in names if n.startswith("v_")}
+    assert speeds and speeds <= set(DRIVER_SPEED_PARAMS)
+
+
+# ----------------------------------------------------------------------------- the environment's scenario option
+@pytest.fixture(scope="module")
+def env():
+    import gymnasium as gym
+
+    import acc_gym  # noqa: F401  (registers the environments)
+
+    e = gym.make("acc_gym/CarFollowing-v0")
+    yield e
+    e.close()
+
+
+@pytest.mark.parametrize("scenario, error, words", [
+    (123, TypeError, r"options\['scenario'\] must be a scenario id or a Scenario, got int"),
+    (["carfollowing/90"], TypeError, r"options\['scenario'\] must be a scenario id or a Scenario, got list"),
+    ({"id": "carfollowing/90"}, TypeError, r"options\['scenario'\] must be a scenario id or a Scenario, got dict"),
+    ("no/such", ValueError, r"unknown scenario id 'no/such'"),
+])
+def test_env_reset_names_a_bad_scenario_option(env, scenario, error, words):
+    with pytest.raises(error, match=words):
+        env.reset(seed=0, options={"scenario": scenario})
+    _, info = env.reset(seed=0, options={"scenario": "carfollowing/90"})  # still usable, draws a valid seed
+    assert info["scenario"] == "carfollowing/90" and type(info["scenario_seed"]) is int
