@@ -209,7 +209,9 @@ def _main(argv=None) -> int:
                                            "or an rl-zoo3 run folder")
     p_eval.add_argument("--algo", default=None, help="the algorithm of a stable-baselines3 model file or rl-zoo3 "
                                                      "folder (ppo, a2c, sac, td3, ddpg; default: read from the file)")
-    p_eval.add_argument("--env", default="acc_gym/CarFollowing-v0", help="an environment id")
+    p_eval.add_argument("--env", default="acc_gym/CarFollowing-v0",
+                        help="an environment id, plain (acc_gym/CarFollowing-v0) or module-qualified "
+                             "(acc_gym:acc_gym/CarFollowing-v0, the form subprocess workers need)")
     p_eval.add_argument("--episodes", type=int, default=10)
     p_eval.add_argument("--seed", type=int, default=0)
     p_eval.add_argument("--drivers", default=None, help="surrounding drivers (typical, atypical, malicious, idm, ...)")
@@ -266,9 +268,14 @@ def _main(argv=None) -> int:
             if out["plot"]:
                 print(f"plot: {out['plot']}")
     elif args.command == "evaluate":
+        from acc_gym.envs.registration import resolve_env_id
         from acc_gym.evaluation.runner import evaluate
 
         kwargs = {} if args.drivers is None else {"drivers": args.drivers}
+        try:
+            resolve_env_id(args.env)  # before the controller loads: an unknown id is named at once
+        except ValueError as exc:
+            parser.error(f"--env: {exc}")
         try:
             controller = args.controller
             if args.algo is not None:  # a model file or folder of the user's own tooling, algorithm given

@@ -171,16 +171,39 @@ class ACCEnv(gym.Env):
     The scenario's end (its duration, e.g. the lead's stop in paper 003's test).
 
     The last step's ``info`` has ``score`` (0-100), ``qualified`` (bool), ``report`` (the
-    full episode report: items, R1, R2, u, j, extra metrics) and ``episode_return``. Every
-    step's ``info`` has ``q`` and ``g`` (D1 - Gapsafe [m], inf with nothing ahead),
-    ``gap_safe``, ``a_applied``, ``violation``, ``modes`` (the POV's and POV2's MPC modes,
-    -1 without one), ``fallbacks`` (solver fallbacks of the surrounding drivers this
-    episode), ``rewards`` and ``t``.
+    full episode report: items, R1, R2, u, j, extra metrics), ``episode_return`` and
+    ``scenario_seed``. Every step's ``info`` has ``q`` and ``g`` (D1 - Gapsafe [m], inf with
+    nothing ahead), ``gap_safe``, ``a_applied``, ``violation``, ``modes`` (the POV's and
+    POV2's MPC modes, -1 without one), ``fallbacks`` (solver fallbacks of the surrounding
+    drivers this episode), ``rewards``, ``scenario`` and ``t``.
+
+    ### Time limits of other wrappers
+    An outer ``TimeLimit`` (``gymnasium.make(id, max_episode_steps=N)`` or
+    ``TimeLimit(env, N)``) may end the episode earlier. The environment cannot see it:
+    gymnasium (1.x) records ``max_episode_steps=None`` in the unwrapped env's ``spec`` and
+    keeps N in the wrapper only. Such an episode is scored as what was driven
+    (:meth:`episode_info`, :meth:`episode_report`):
+
+    * under stable-baselines3's ``DummyVecEnv`` and ``SubprocVecEnv`` with nothing to add:
+      they mark the truncating step's info (``info["TimeLimit.truncated"]``) and reset the
+      env in that same step, before returning ``infos``; that reset puts ``score``,
+      ``qualified``, ``report``, ``episode_return`` and ``scenario_seed`` into that info,
+      so ``infos[i]`` (the one with ``terminal_observation``) has them;
+    * anywhere else -- your own loop, gymnasium's vector envs -- wrap the time limit in
+      :class:`acc_gym.wrappers.ScoreOnTruncation`, which puts them into the truncating
+      step's info at once. An info the env has handed over unmarked is never changed
+      afterwards (gymnasium's ``check_env`` compares them across resets).
+
+    A cut episode's score is that of the drive so far, not of the scenario (which may not
+    have reached its test phase yet).
 
     ## Arguments
 
     ``gymnasium.make("acc_gym/CarFollowing-v0", config=None, scenario_generator=None,
-    reward_fn=None, render_mode=None, mpc_settings=None, **settings)``: ``config`` an
+    reward_fn=None, render_mode=None, mpc_settings=None, **settings)`` -- in a process that
+    has not imported acc_gym (SB3's ``SubprocVecEnv`` workers under ``spawn`` or
+    ``forkserver``) name it ``"acc_gym:acc_gym/CarFollowing-v0"``, or use
+    :func:`acc_gym.make_vec_env`: ``config`` an
     :class:`~acc_gym.envs.config.EnvConfig` (or dict); ``settings`` override its fields
     (``scenarios``, ``weights``, ``drivers``, ``accel_max``, ``decel_max``,
     ``sensor_range``, ``v2v``, ``terminate_on_violation``, ``scoring``); a misspelt setting
@@ -208,6 +231,7 @@ class ACCEnv(gym.Env):
                                                self.observation_space.high.astype(float))
         self._accel_max, self._decel_max = float(self.config.accel_max), float(self.config.decel_max)
         self._needs_reset = True
+        self._last_info = None  # the last step's info while the episode runs (see reset)
         self._viewer = None
 
     @property
@@ -228,6 +252,11 @@ class ACCEnv(gym.Env):
             scenario = build(scenario, seed=int(self.np_random.integers(0, 2 ** 31 - 1)), drivers=self.config.drivers)
         elif scenario is not None and not isinstance(scenario, Scenario):
             raise TypeError(f"options['scenario'] must be a scenario id or a Scenario, got {type(scenario).__name__}")
+        last, self._last_info = self._last_info, None
+        if last is not None and bool(last.get("TimeLimit.truncated", False)) and "score" not in last:
+            # an outer time limit cut the episode and SB3's vector env, which marks such a step's info, now
+            # resets in that same step: that info, not yet handed over, gets the episode's evaluation
+            last.update(self.episode_info())
         self.core.reset_rows([0], [self.np_random], [scenario], [time_gap])
         self._needs_reset = False
         sc = self.scenario
@@ -259,6 +288,9 @@ class ACCEnv(gym.Env):
         if 0 in info["final"]:
             out.update(info["final"][0])
             self._needs_reset = True
+            self._last_info = None
+        else:
+            self._last_info = out  # completed by reset() if SB3 marks it truncated by an outer time limit
         if self.render_mode == "human":
             self.render()
         return self.core.last_obs[0], float(reward[0]), bool(term[0]), bool(trunc[0]), out
@@ -274,6 +306,17 @@ class ACCEnv(gym.Env):
         if int(self.core.world.k[0]) < 1:
             raise RuntimeError("episode_report() needs at least one step since reset() (a score needs two samples)")
         return score_episode(self.core.trace(0), self.config.scoring).to_dict()
+
+    def episode_info(self) -> dict:
+        """What the last step's ``info`` gets at the episode's end, for the episode so far:
+        ``score``, ``qualified``, ``report`` (:meth:`episode_report`), ``episode_return``
+        and ``scenario_seed`` -- the keys of the env's own last step.
+        :class:`acc_gym.wrappers.ScoreOnTruncation` puts it into the info of the step where
+        an outer time limit truncates, and :meth:`reset` into such a step's info once
+        stable-baselines3's vector env has marked it (see *Episode End*)."""
+        report = self.episode_report()
+        return {"score": report["score"], "qualified": report["qualified"], "report": report,
+                "episode_return": float(self.core.episode_return[0]), "scenario_seed": self.scenario.seed}
 
     def render(self):
         if self.render_mode is None:

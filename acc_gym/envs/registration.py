@@ -12,12 +12,18 @@ always work:
   imports the module before the id (:func:`qualified_id` makes it);
 * :func:`make_vec_env` -- stable-baselines3's ``make_vec_env`` with the id qualified.
 
+Everything of acc_gym that takes an id (``acc-gym evaluate --env``, ``acc-gym train
+--env``, :func:`~acc_gym.evaluation.runner.evaluate`, :func:`make_vec_env`) takes either
+form (:func:`resolve_env_id`), and names an unknown id with the registered ones.
+
 Every id is the same :class:`~acc_gym.envs.acc_env.ACCEnv` drawing from one scenario
 family, with the native :class:`~acc_gym.envs.vector.ACCVectorEnv` as its
 ``vector_entry_point``.
 """
 
 from __future__ import annotations
+
+import importlib
 
 ENV_IDS = {
     "acc_gym/CarFollowing-v0": ("carfollowing",),  # paper 003's test at 60, 90, 120 km/h
@@ -45,10 +51,40 @@ def qualified_id(env_id: str) -> str:
     return f"acc_gym:{env_id}" if env_id in ENV_IDS else env_id
 
 
+def resolve_env_id(env_id: str) -> str:
+    """The registered id that ``env_id`` names, given plain (``"acc_gym/CarFollowing-v0"``)
+    or module-qualified (``"acc_gym:acc_gym/CarFollowing-v0"``: the module is imported
+    first, as ``gymnasium.make`` does -- ``gymnasium.spec`` takes only the plain form).
+
+    ``ValueError`` naming ``env_id`` when its module cannot be imported or no environment
+    is registered under it; the message lists acc_gym's ids and the qualified form that
+    subprocess workers need."""
+    if not isinstance(env_id, str):
+        raise TypeError(f"an environment id must be a string, got {type(env_id).__name__}")
+    import gymnasium as gym
+    from gymnasium import error
+
+    module, name = env_id.split(":", 1) if ":" in env_id else (None, env_id)
+    if module is not None:
+        try:
+            importlib.import_module(module)
+        except ImportError as exc:
+            raise ValueError(f"environment id {env_id!r}: cannot import its module {module!r} ({exc})") from None
+    try:
+        return gym.spec(name).id
+    except error.Error as exc:
+        raise ValueError(f"unknown environment id {env_id!r} ({exc}); acc_gym's ids: {', '.join(ENV_IDS)} -- "
+                         f"in subprocess workers (SB3's SubprocVecEnv with spawn or forkserver) give them as "
+                         f"'acc_gym:<id>', e.g. {qualified_id(next(iter(ENV_IDS)))!r}") from None
+
+
 def make_vec_env(env_id: str, n_envs: int = 1, **kwargs):
     """stable-baselines3's ``make_vec_env`` for an acc_gym id, in any vector env class and
     start method (``vec_env_cls=SubprocVecEnv, vec_env_kwargs={"start_method": "spawn"}``):
-    the id is qualified (:func:`qualified_id`) so that every worker imports acc_gym."""
+    the id is qualified (:func:`qualified_id`) so that every worker imports acc_gym.
+    ``env_id`` may be given plain or qualified; an unknown one is a ``ValueError`` naming it
+    (:func:`resolve_env_id`), raised here rather than in the workers."""
+    env_id = resolve_env_id(env_id)
     try:
         from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
     except ImportError as exc:  # pragma: no cover - the rl extra is not installed

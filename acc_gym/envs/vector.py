@@ -21,6 +21,13 @@ cores. ``workers_context`` picks the ``multiprocessing`` start method (default
 (the workers are daemons and also end with the program). Each worker draws its next
 episodes' scenarios while the caller's policy runs (:meth:`ACCVectorEnv.prepare_resets`),
 so a training loop gains more from workers than a loop of pre-drawn actions.
+
+The native vector env runs in the caller's process (its ``workers`` get the config, not
+the id). To run single environments in stable-baselines3's ``SubprocVecEnv`` instead, give
+the workers the module-qualified id, ``"acc_gym:acc_gym/SingleLane-v0"`` (a worker started
+with ``spawn`` or ``forkserver`` has not imported acc_gym), or use
+``acc_gym.make_vec_env("acc_gym/SingleLane-v0", n_envs=8, vec_env_cls=SubprocVecEnv)``,
+which qualifies it.
 """
 
 from __future__ import annotations

@@ -177,13 +177,19 @@ def run_episode(env, controller, *, seed: int | None = None, scenario=None, reco
 
 def evaluate(controller, env_id: str = "acc_gym/CarFollowing-v0", episodes: int = 10, seed: int = 0,
              **env_kwargs) -> dict:
-    """Run ``episodes`` episodes (seeded once with ``seed``) and summarise their reports."""
+    """Run ``episodes`` episodes (seeded once with ``seed``) and summarise their reports.
+
+    ``env_id`` plain (``"acc_gym/CarFollowing-v0"``) or module-qualified
+    (``"acc_gym:acc_gym/CarFollowing-v0"``); an unknown id is a ``ValueError`` naming it and
+    listing acc_gym's ids (:func:`acc_gym.envs.registration.resolve_env_id`)."""
     import gymnasium as gym
 
     import acc_gym  # noqa: F401  (registers the ids)
+    from acc_gym.envs.registration import resolve_env_id
 
     if int(episodes) != episodes or episodes < 1:
         raise ValueError(f"episodes must be a positive integer, got {episodes!r}")
+    env_id = resolve_env_id(env_id)  # before loading the controller: a misspelt --env fails at once
     policy = load_controller(controller)
     env = gym.make(env_id, **env_kwargs)
     declared = declared_time_gap(policy)

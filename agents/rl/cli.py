@@ -14,7 +14,9 @@ class _Train:
     def add_parser(sub) -> None:
         p_tr = sub.add_parser("train", help="train an ACC policy with stable-baselines3 (needs the rl extra)")
         p_tr.add_argument("algo", choices=["ppo", "sac", "td3"])
-        p_tr.add_argument("--env", default="acc_gym/CarFollowing-v0")
+        p_tr.add_argument("--env", default="acc_gym/CarFollowing-v0",
+                          help="an environment id, plain (acc_gym/CarFollowing-v0) or module-qualified "
+                               "(acc_gym:acc_gym/CarFollowing-v0, the form subprocess workers need)")
         p_tr.add_argument("--timesteps", type=int, default=100_000)
         p_tr.add_argument("--seed", type=int, default=0)
         p_tr.add_argument("--out", required=True, help="run directory (model, checkpoints, evaluations, manifest)")
@@ -47,6 +49,12 @@ class _Train:
 
     @staticmethod
     def run(args, parser) -> int:
+        from acc_gym.envs.registration import resolve_env_id
+
+        try:
+            resolve_env_id(args.env)  # named at once, before torch loads
+        except ValueError as exc:
+            parser.error(f"--env: {exc}")
         try:
             from acc_gym_agents.rl.train import train
         except ImportError as exc:

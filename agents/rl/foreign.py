@@ -13,6 +13,11 @@ file, or an rl-zoo3 run folder.
   running mean and variance, ``clip_obs`` and ``epsilon`` (observations only; rewards do
   not reach a controller).
 
+A model file's statistics are looked up the same way in its folder
+(:func:`vecnormalize_file`): next to it, else in the subfolder named after it, else the
+only ``*/vecnormalize.pkl``; several candidates none of which is the model's are an error
+naming them, never a guess.
+
 Either becomes an :class:`acc_gym_agents.rl.policy.SB3Policy`, the same ``predict`` path
 as runs of ``acc-gym train``. A folder or file that is none of these is not claimed (the
 loader returns None and the caller says what it expected).
@@ -72,14 +77,38 @@ def zoo_model(folder: Path) -> Path | None:
     raise ValueError(f"{folder}: more than one model ({', '.join(p.name for p in zips)}); name the .zip to load")
 
 
-def vecnormalize_stats(folder: Path) -> tuple[np.ndarray, np.ndarray, float, float] | None:
-    """``(mean, var, clip_obs, epsilon)`` of the folder's ``vecnormalize.pkl`` (searched in the
-    folder and its subfolders), or None when it has none or it does not normalise observations."""
-    found = sorted(folder.glob(VECNORMALIZE)) + sorted(folder.glob(f"*/{VECNORMALIZE}"))
-    if not found:
+def vecnormalize_file(folder: Path, model: Path | None = None) -> Path | None:
+    """The ``vecnormalize.pkl`` that goes with ``model`` in ``folder``, or None:
+
+    * ``folder/vecnormalize.pkl`` (next to the model);
+    * else rl-zoo3's layout, ``folder/<model's stem>/vecnormalize.pkl`` (the model
+      ``acc_gym-CarFollowing-v0.zip`` beside its ``acc_gym-CarFollowing-v0/`` folder);
+    * else the one ``folder/*/vecnormalize.pkl``. Several there, none of them the model's,
+      is a ``ValueError`` naming them: which statistics belong to the model cannot be told,
+      and the wrong ones would silently change every observation."""
+    own = folder / VECNORMALIZE
+    if own.is_file():
+        return own
+    if model is not None and (folder / model.stem / VECNORMALIZE).is_file():
+        return folder / model.stem / VECNORMALIZE
+    found = sorted(folder.glob(f"*/{VECNORMALIZE}"))
+    if len(found) > 1:
+        names = ", ".join(str(f.relative_to(folder)) for f in found)
+        own_dir = f" or in {model.stem}/" if model is not None else ""
+        raise ValueError(f"{folder}: which VecNormalize statistics go with the model is ambiguous: {names} "
+                         f"(none next to it{own_dir}); copy the right one next to the model as {VECNORMALIZE}")
+    return found[0] if found else None
+
+
+def vecnormalize_stats(folder: Path, model: Path | None = None) -> tuple[np.ndarray, np.ndarray, float, float] | None:
+    """``(mean, var, clip_obs, epsilon)`` of the ``vecnormalize.pkl`` that goes with ``model``
+    in ``folder`` (:func:`vecnormalize_file`), or None when there is none or it does not
+    normalise observations."""
+    path = vecnormalize_file(Path(folder), None if model is None else Path(model))
+    if path is None:
         return None
     try:
-        with open(found[0], "rb") as f:
+        with open(path, "rb") as f:
             vn = pickle.load(f)  # the user's own file, loaded in the controller's own process
         if not getattr(vn, "norm_obs", True):
             return None
@@ -87,7 +116,7 @@ def vecnormalize_stats(folder: Path) -> tuple[np.ndarray, np.ndarray, float, flo
         return (np.asarray(rms.mean, dtype=np.float64), np.asarray(rms.var, dtype=np.float64),
                 float(vn.clip_obs), float(vn.epsilon))
     except Exception as exc:  # noqa: BLE001  (a broken or foreign pickle: name the file)
-        raise ValueError(f"{found[0]}: not a stable-baselines3 VecNormalize file ({type(exc).__name__}: {exc})") \
+        raise ValueError(f"{path}: not a stable-baselines3 VecNormalize file ({type(exc).__name__}: {exc})") \
             from None
 
 
@@ -101,9 +130,9 @@ def load_foreign(path, algo: str | None = None):
         model_path = zoo_model(p)
         if model_path is None:
             return None
-        stats = vecnormalize_stats(p)
+        stats = vecnormalize_stats(p, model_path)
     elif p.is_file() and _data(p) is not None:
-        model_path, stats = p, vecnormalize_stats(p.parent)
+        model_path, stats = p, vecnormalize_stats(p.parent, p)
     else:
         return None
     algo = detect_algo(model_path) if algo is None else str(algo).lower()

@@ -96,7 +96,10 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
     ``train_scoring``: :class:`~acc_gym.evaluation.ScoringConfig` settings for the *training*
     environments only (their reward, termination and the score bonus), e.g.
     ``{"lead_margin": 1.0}``; the evaluations, like every user of the run, score with the
-    environment's own scoring, so they stay comparable with other controllers."""
+    environment's own scoring, so they stay comparable with other controllers.
+
+    ``env_id`` may be module-qualified (``"acc_gym:acc_gym/CarFollowing-v0"``); the run's
+    manifest records the registered (plain) id."""
     import gymnasium as gym
     import stable_baselines3 as sb3
     from stable_baselines3.common.callbacks import BaseCallback
@@ -114,7 +117,10 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
     from acc_gym_agents.rl.residual_law import check_shield
 
     shield = check_shield(shield)  # stored normalised: None, "proper-response" or "base"
-    spec = gym.spec(env_id)  # raises for an unknown id
+    from acc_gym.envs.registration import resolve_env_id
+
+    env_id = resolve_env_id(env_id)  # plain or "acc_gym:"-qualified; ValueError naming an unknown id
+    spec = gym.spec(env_id)
     if mix:
         if "scenarios" in env_settings or "weights" in env_settings:
             raise ValueError("give either mix or scenarios / weights, not both")

@@ -128,3 +128,43 @@ def test_module_controllers_resolve_from_the_working_directory(tmp_path):
     done = subprocess.run([sys.executable, "-m", "acc_gym", "--help"], cwd=tmp_path, capture_output=True, text=True,
                           timeout=120)
     assert done.returncode == 0 and "acc-gym" in done.stdout and "evaluate" in done.stdout
+
+
+def _stats_file(path, shift: float) -> None:
+    """A VecNormalize file whose observation mean is ``shift`` everywhere (distinct statistics)."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    venv = VecNormalize(DummyVecEnv([lambda: gym.make(ENV)]), norm_reward=False)
+    venv.obs_rms.mean[:] = shift
+    venv.obs_rms.var[:] = 4.0
+    path.parent.mkdir(parents=True, exist_ok=True)
+    venv.save(str(path))
+
+
+def test_a_model_files_vecnormalize_is_its_own_or_an_error_naming_the_candidates(ppo_file, tmp_path, capsys):
+    """Several ``*/vecnormalize.pkl`` beside a bare model file: none is taken by guess (the
+    alphabetically first was applied silently before); the model's own wins: next to it,
+    or rl-zoo3's ``<model name>/`` folder."""
+    path, _ = ppo_file
+    model = tmp_path / "model.zip"
+    shutil.copy(path, model)
+    _stats_file(tmp_path / "a_run" / "vecnormalize.pkl", 1.0)
+    _stats_file(tmp_path / "b_run" / "vecnormalize.pkl", 2.0)
+    with pytest.raises(ValueError) as err:
+        load_foreign(model)
+    assert "ambiguous" in str(err.value) and "a_run/vecnormalize.pkl" in str(err.value) \
+        and "b_run/vecnormalize.pkl" in str(err.value)
+    with pytest.raises(SystemExit):
+        main(["evaluate", str(model), "--episodes", "1"])
+    assert "a_run/vecnormalize.pkl" in capsys.readouterr().err
+    obs = gym.make(ENV).reset(seed=1)[0]
+    _stats_file(tmp_path / "model" / "vecnormalize.pkl", 3.0)  # rl-zoo3's layout: <model name>/vecnormalize.pkl
+    assert np.array_equal(load_foreign(model).normalise(obs), np.clip((obs - 3.0) / np.sqrt(4.0 + 1e-8), -10, 10)
+                          .astype(np.float32))
+    _stats_file(tmp_path / "vecnormalize.pkl", 5.0)  # next to the model: first
+    assert load_foreign(model).mean.tolist() == [5.0] * 7
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    shutil.copy(path, alone / "model.zip")
+    _stats_file(alone / "only" / "vecnormalize.pkl", 6.0)  # a single candidate is still found
+    assert load_foreign(alone / "model.zip").mean.tolist() == [6.0] * 7
