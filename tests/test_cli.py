@@ -13,7 +13,8 @@ def test_driver_demo_json_reports_what_the_driver_did(capsys):
     assert main(["driver-demo", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     modes = [m["mode"] for m in out["modes"]]
-    assert modes[0] == "ACCELERATE" and "BRAKE" in modes
+    # standing behind the stopped lead the brake holds the car (driver model 2); then it drives off
+    assert modes[0] == "BRAKE" and modes[1] == "ACCELERATE" and "BRAKE" in modes[2:]
     assert not out["collided"]
     assert out["min_gap_m"] >= out["x_min_m"] - 1e-6
     assert out["max_abs_jerk_mps3"] <= 2.5 + 1e-6

@@ -42,7 +42,7 @@ EMERGENCY_MARGIN = 1.25  # emergency plans may brake 25 % harder than kinematica
 C_ALPHA = N_DRIVER_COLS + 10  # after the vehicle's 10 columns: terminal chords (alpha, then beta)
 C_BETA = C_ALPHA + K_TERM
 # Settings vector
-S_DT, S_ZOH, S_HYST, S_CREEP, S_PULL, S_FEAS, S_LEADACC, S_SLACK_LIN, S_WARM = range(9)
+S_DT, S_ZOH, S_HYST, S_CREEP, S_PULL, S_FEAS, S_LEADACC, S_SLACK_LIN, S_WARM, S_COAST_FADE, S_SHORT, S_STOP = range(12)
 # Work matrix columns (outputs)
 W_U0, W_TARGET, W_AREQ, W_PATH, W_TH0, W_TH1, W_LOWER0, W_UPPER0, W_DR, W_MODE_PRE, W_VIOL, W_SLACK, W_ITER, W_ANEED = range(14)
 N_WORK = 14  # theta = (W_TH0, W_TH1, u_prev)
@@ -68,6 +68,31 @@ def required_decel(R, dR):
 
 
 @numba.njit(cache=True, error_model="numpy")
+def coast_decel(P, S, i, v):
+    """Driver ``i``'s deceleration with the pedals released at speed ``v`` [m/s^2]: its
+    ``a_sail`` (engine drag and resistance) fading linearly to 0 below the coasting fade
+    speed, so that coasting alone never brings a car to a standstill (near idle the
+    drivetrain no longer brakes it; an automatic even creeps): only the brake stops a car."""
+    fade = S[S_COAST_FADE]
+    if fade > 0.0 and v < fade:
+        return P[i, A_SAIL] * max(v, 0.0) / fade
+    return P[i, A_SAIL]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def coast_distance(P, S, i, v):
+    """Distance [m] a car at ``v`` rolls with the pedals released (:func:`coast_decel`) before
+    it stops (above the fade speed) or all but stops (below it: the exponential tail)."""
+    a_s = -P[i, A_SAIL]
+    if a_s <= 0.0:
+        return np.inf
+    fade = S[S_COAST_FADE]
+    if v <= fade:
+        return v * fade / a_s
+    return (v * v - fade * fade) / (2.0 * a_s) + fade * fade / a_s
+
+
+@numba.njit(cache=True, error_model="numpy")
 def mode_limits(P, S, i, m, v, u_prev, a_need):
     """``(lower0, upper0, env_lo, env_hi, rate)`` of driver ``i`` in mode ``m``: the first
     input's range (mode, ramp and vehicle), the plan's range and its per-step change bound.
@@ -76,7 +101,7 @@ def mode_limits(P, S, i, m, v, u_prev, a_need):
     demanding real target at ``x_min`` (0 if not closing); it sets the emergency range."""
     dt = S[S_DT]
     a_up, a_lo = vehicle_limits(P, i, v)
-    a_max, a_min, a_sail = P[i, A_MAX], P[i, A_MIN], P[i, A_SAIL]
+    a_max, a_min, a_sail = P[i, A_MAX], P[i, A_MIN], coast_decel(P, S, i, v)
     if m == EMERGENCY:
         # brake as hard as the situation needs (with a margin), not harder: the range
         # reaches down to 1.25 times the kinematically needed deceleration, at the
@@ -585,14 +610,31 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
             areq, dR, v_t = a, -v, 0.0
     # --- mode logic (before solving); decelerating modes are 'BRAKE' until labelled
     m = mode[i]
+    # a (nearly) stopped target: where the driver must stop (room [m] to it) and whether
+    # coasting would leave it short of there by more than the stop-short margin
+    creep = S[S_CREEP]
+    room = np.inf
+    if has_lead:
+        room = gap[i] - x_min
+    if has_stop:
+        room = min(room, stop_gap[i])
+    short = v_t <= creep and room - coast_distance(P, S, i, v) > S[S_SHORT]
     if m == ACCELERATE:
-        if areq <= P[i, A_REQ_SAIL]:
+        # to the decelerating modes when the required deceleration reaches the driver's
+        # sailing threshold (Eq. 10), or, creeping towards a (nearly) stopped target, once
+        # coasting would carry it there (within the stop-short margin): it lifts off
+        if areq <= P[i, A_REQ_SAIL] or (v <= creep and v_t <= S[S_PULL] and not short):
             m = BRAKE
     elif m == SAIL or m == BRAKE:
-        # back to the throttle only if the target really pulls away, or, sailing above
-        # creep speed, behind a target that itself moves faster than creep speed
-        creep = S[S_CREEP]
-        if areq > P[i, A_REQ_SAIL] + S[S_HYST] and (dR > S[S_PULL] or (m == SAIL and v > creep and v_t > creep)):
+        # back to the throttle only once the brake is released (the applied acceleration is
+        # at least the coasting one; until then the upper bound ramps the release), and only
+        # if the target really pulls away, or, sailing above creep speed, behind a target that
+        # itself moves faster than creep speed, or if coasting would leave the driver short of
+        # a (nearly) stopped target by more than the stop-short margin (a driver rolls on
+        # towards the queue instead of stopping short of it on engine drag)
+        released = up >= coast_decel(P, S, i, v) - 1e-9
+        if released and ((areq > P[i, A_REQ_SAIL] + S[S_HYST] and (dR > S[S_PULL] or (m == SAIL and v > creep and v_t > creep)))
+                         or short):
             m = ACCELERATE
         else:
             m = BRAKE
@@ -629,7 +671,11 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         u0 = gain_f[i, 0, 0] * t0 + gain_f[i, 0, 1] * t1 + gain_f[i, 0, 2] * up
         if t_real == LEAD and a_l != 0.0:
             u0 += _lead_term(gain_lead, i, 0, a_l, ks, a_part, n)
-        if u0 <= best or m != ACCELERATE:
+        # creeping towards a (nearly) stopped vehicle or a stop position, the driver deals
+        # with it, not with its desired speed (the free-driving law, held back by the gap
+        # constraint, would coast it to a stop short of the queue)
+        queue = t_real == STOP or v_lead[i] <= S[S_PULL]
+        if u0 <= best or m != ACCELERATE or queue:
             target, th0, th1 = t_real, t0, t1
     lower0, upper0, env_lo, env_hi, rate = mode_limits(P, S, i, m, v, up, a_need)
     W[i, W_TARGET] = target
@@ -642,14 +688,18 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
     W[i, W_MODE_PRE] = m
     W[i, W_SLACK] = 0.0
     W[i, W_ITER] = 0.0
+    # --- the final stop: decelerating at walking pace towards a stopped target that coasting
+    # would not leave it short of, the driver brakes to a standstill, no QP: within this step
+    # if that needs no more than one jerk step of braking (so that the deceleration's drop to
+    # 0 at standstill is within the jerk bound too), else at that braking, reached at the
+    # jerk bound; a stopping distance of a few centimetres
+    final = (m == BRAKE or m == SAIL) and 0.0 < v < S[S_STOP] and v_t <= S[S_PULL] and not short
+    if final:
+        step = P[i, JERK] * dt
+        upper0 = min(upper0, min(max(max(-v / dt, -step), up - step), up + step))
     # --- stopping inside this step (or standing) under the mode's least braking: no QP
-    if v + dt * upper0 <= 0.0:
+    if final or v + dt * upper0 <= 0.0:
         # ... unless that least braking would roll past x_min: then the exact stop
-        room = np.inf
-        if has_lead:
-            room = gap[i] - x_min
-        if has_stop:
-            room = min(room, stop_gap[i])
         if v > 0.0 and v * v > -2.0 * upper0 * room:
             a_lo = vehicle_limits(P, i, v)[1]
             upper0 = max(-v * v / (2.0 * max(room, 1e-9)), a_lo)
@@ -657,8 +707,9 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         W[i, W_U0] = upper0
         W[i, W_PATH] = HOLD
         W[i, W_VIOL] = 0.0
-        # standing still: brake held; stopping inside the step at the least braking: sailing
-        mode[i] = BRAKE if v <= 0.0 else (SAIL if m == BRAKE else m)
+        # standing still, or stopping inside this step: the brake holds the car (no car comes to
+        # a standstill on engine drag at a chosen point), unless in an emergency
+        mode[i] = EMERGENCY if m == EMERGENCY else BRAKE
         for k in range(n):
             plan[i, k] = 0.0
         plan[i, 0] = upper0
@@ -712,7 +763,8 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
             if m == EMERGENCY:
                 stats[i, ST_EMERGENCY] += 1
         else:
-            mode[i] = SAIL if plan[i, 0] >= upper0 - 1e-7 else BRAKE
+            # SAIL: the pedals released (the coasting deceleration); anything harder: BRAKE
+            mode[i] = SAIL if min(max(plan[i, 0], lower0), upper0) >= coast_decel(P, S, i, v) - 1e-7 else BRAKE
     else:
         W[i, W_U0] = np.nan
         W[i, W_PATH] = QP

@@ -36,7 +36,7 @@ Discretisation
     form is ``MPCSettings(discretisation="euler")``. Terminal weight: the Riccati solution.
 Modes (paper Figure 9)
     ``ACCELERATE``: ``u_0`` in ``[a_sail, a_max]``. Decelerating: ``u_0`` in
-    ``[a_min, a_sail]``, labelled ``SAIL`` while the optimum sits at its upper bound
+    ``[a_min, a_sail]``, labelled ``SAIL`` while the optimum is the coasting deceleration
     (pedals released) and ``BRAKE`` below it. ``EMERGENCY``: ``u_0`` down to the
     vehicle's braking limit with the emergency jerk. The mode restricts the current
     input; the rest of the plan may use the driver's whole range ``[a_min, a_max]``
@@ -49,6 +49,23 @@ Modes (paper Figure 9)
       the target is really pulling away (``dR > pull_away_speed``), or, from SAIL, above
       ``creep_speed``. The literal rule would re-accelerate while still closing on a
       stopped vehicle at creep speed, because ``a_req -> 0`` as the speed does.
+    * Mode semantics (issue 23): ``a_sail`` is the coasting deceleration (pedals released:
+      engine drag and resistance; ``MPCSettings.coast_fade_speed`` can fade it out at low
+      speed, off by default). ACCELERATE never decelerates harder than coasting; SAIL is
+      coasting; anything harder is BRAKE (the label follows the applied first input, not
+      the ramped bound). A braking driver returns to ACCELERATE only once the brake is
+      released (the first input is back at coasting; the release itself ramps at the jerk
+      bound inside the decelerating mode, labelled BRAKE).
+    * Queues and stops: towards a (nearly) stopped vehicle or a stop position
+      (speed <= ``pull_away_speed``) the target's law controls even in ACCELERATE (the
+      free-driving law, held back only by the gap constraint, coasted 7-8 % of typical
+      drivers to a standstill 7-15 m short of their standstill gap); at or below
+      ``creep_speed`` a driver lifts off (decelerating modes) once coasting would carry it
+      to its stopping point, and rolls on (ACCELERATE, brake released) while coasting would
+      leave it more than ``stop_short_margin`` short. Below ``stop_speed`` it brakes to a
+      standstill at its jerk bound, and every step that ends in a standstill is BRAKE:
+      the brake holds the car. So every stop behind a stopped vehicle ends braking, within
+      ``stop_short_margin`` of ``x_min`` (tests/drivers/test_modes.py).
     * Escalation: if the QP needs slack (the gap or speed constraint cannot hold within
       the mode's bounds), an ACCELERATE driver is re-solved decelerating, and a
       decelerating one in ``EMERGENCY``; an emergency ends on the first step the
@@ -81,6 +98,13 @@ from acc_gym.drivers import _mpc_kernel as K
 from acc_gym.drivers.base import Observation
 from acc_gym.drivers.qp import K_TERM, Horizon, condensed_qp, make_backend, terminal_chords
 from acc_gym.vehicle import VehicleParams, accel_lower
+
+
+# The behaviour's version: it goes up whenever the same parameters give other trajectories.
+# 2 (acc-gym 0.4.0): the modes mean their names (coasting is SAIL, any harder deceleration is
+# BRAKE, ACCELERATE only with the brake released), queues are approached under the target's
+# law and every stop ends braking (issue 23); EMERGENCY never releases the brake on entry.
+MODEL_VERSION = 2
 
 
 class Mode(IntEnum):
@@ -298,6 +322,9 @@ class MPCSettings:
     hysteresis: float = 0.2  # [m/s^2] a_req margin above a_req_sail to re-accelerate
     creep_speed: float = 2.0  # [m/s] SAIL -> ACCELERATE only above this speed ...
     pull_away_speed: float = 0.3  # [m/s] ... or when the target pulls away faster than this
+    coast_fade_speed: float = 0.0  # [m/s] below it the coasting deceleration fades to 0 (a_sail v / this); 0: none
+    stop_short_margin: float = 1.0  # [m] coasting would stop the driver this far short of a stopped target: roll on
+    stop_speed: float = 0.3  # [m/s] below it, closing on a stopped target, the driver brakes to a standstill
     feas_tol: float = 1e-7  # accept the unconstrained law if no constraint is violated by more
     slack_tol: float = 1e-3  # [m or m/s] slack above this escalates the mode
     slack_linear: float = 1e9  # exact-penalty weight of the slack (above any multiplier of a far target)
@@ -317,7 +344,8 @@ class MPCSettings:
         for name in ("max_iter",):
             if int(getattr(self, name)) <= 0:
                 raise ValueError(f"MPCSettings.{name} must be > 0, got {getattr(self, name)!r}")
-        for name in ("hysteresis", "creep_speed", "pull_away_speed", "feas_tol", "slack_tol"):
+        for name in ("hysteresis", "creep_speed", "pull_away_speed", "coast_fade_speed", "stop_short_margin", "stop_speed",
+                     "feas_tol", "slack_tol"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"MPCSettings.{name} must be >= 0, got {value!r}")
@@ -375,7 +403,8 @@ class MPCDriver:
              self.vehicle.as_matrix(n), self._alpha, self._beta], axis=1))
         self._S = np.array([s.dt, 1.0 if s.discretisation == "zoh" else 0.0, s.hysteresis, s.creep_speed,
                             s.pull_away_speed, s.feas_tol, 1.0 if s.use_lead_accel else 0.0, s.slack_linear,
-                            1.0 if s.warm_active_set else 0.0])
+                            1.0 if s.warm_active_set else 0.0, s.coast_fade_speed, s.stop_short_margin,
+                            s.stop_speed])
         self._qp_follow = [condensed_qp(float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]),
                                         self.horizon, s.slack_linear, s.slack_quadratic, float(p.r_jerk[i]))
                            for i in range(n)]
@@ -718,7 +747,7 @@ class MPCDriver:
             W[i, K.W_U0] = upper0
             W[i, K.W_PATH] = K.HOLD
             st[K.ST_HOLD] += 1
-            self.mode[i] = m if m == K.EMERGENCY else (K.BRAKE if v <= 0 else K.SAIL)
+            self.mode[i] = m if m == K.EMERGENCY else K.BRAKE  # stopping inside the step: the brake holds it
             st[K.ST_EMERGENCY] += m == K.EMERGENCY
             self._act_count[i] = 0
             return
@@ -738,7 +767,8 @@ class MPCDriver:
                 self.mode[i] = m
                 st[K.ST_EMERGENCY] += m == K.EMERGENCY
             else:
-                self.mode[i] = K.SAIL if u0 >= upper0 - 1e-6 else K.BRAKE
+                # SAIL: the pedals released (the coasting deceleration); anything harder: BRAKE
+                self.mode[i] = K.SAIL if u0 >= K.coast_decel(self._P, self._S, i, v) - 1e-6 else K.BRAKE
             return
         # --- fallback: stop behind the most demanding real target at x_min, or keep the plan
         W[i, K.W_PATH] = K.FALLBACK

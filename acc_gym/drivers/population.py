@@ -18,6 +18,8 @@ the neighbouring rows' minima are -1.67 to -1.88).
 Sampling: each quantity is drawn through the piecewise-linear inverse CDF of its
 five-number summary at a uniform level ``p``:
 
+* ``naturalistic`` drivers: ``p`` in [0, 1], the whole distribution the tables describe
+  (the population of the paper's 300 vehicles: what Fig. 7's means and spreads are of),
 * ``typical`` drivers: ``p`` in [0.1, 0.9] (the central 80 %),
 * ``atypical`` drivers: ``p`` in the tails [0, 0.1) or (0.9, 1] (each with probability 1/2),
 * ``malicious`` drivers: constraints near the vehicle's limits (braking limit at 85-95 %
@@ -101,7 +103,7 @@ _SPEED_BANDS_LIST = SPEED_BANDS.tolist()
 Q1N_RANGE = (0.04, 1.2)  # speed-normalised distance weight, log-uniform (see module docstring)
 Q1_SPEED_REF = 20.0  # [m/s]
 Q1_SPEED_EXPONENT = 2.5
-KINDS = ("typical", "atypical", "malicious")
+KINDS = ("typical", "atypical", "malicious", "naturalistic")
 _FIELD_NAMES = tuple(f.name for f in fields(MPCDriverParams))
 _DEFAULT_VEHICLE = VehicleParams()  # frozen: shared by every draw that is not given a vehicle
 _LOG_TG = np.log(1.5)  # the log-normal time gap's log median (log [s]), as sample_drivers computes it
@@ -131,6 +133,8 @@ def quantile(table: np.ndarray, band, p) -> np.ndarray:
 def _levels(rng: np.random.Generator, n: int, kind: str) -> np.ndarray:
     if kind == "typical":
         return rng.uniform(0.1, 0.9, n)
+    if kind == "naturalistic":
+        return rng.uniform(0.0, 1.0, n)
     # atypical: either tail
     tail = rng.random(n) < 0.5
     return np.where(tail, rng.uniform(0.0, 0.1, n), rng.uniform(0.9, 1.0, n))
@@ -147,6 +151,8 @@ def _quantile_one(row: list, p: float) -> float:
 def _level_one(rng: np.random.Generator, kind: str) -> float:
     if kind == "typical":
         return rng.uniform(0.1, 0.9)
+    if kind == "naturalistic":
+        return rng.uniform(0.0, 1.0)
     tail = rng.random() < 0.5
     low, high = rng.uniform(0.0, 0.1), rng.uniform(0.9, 1.0)  # both drawn, as _levels does
     return low if tail else high
@@ -196,8 +202,8 @@ def sample_drivers(rng: np.random.Generator, n: int, speed, kind: str = "typical
     """Sample ``n`` self-consistent MPC drivers for manoeuvres at ``speed`` [m/s] (scalar or ``(n,)``).
 
     ``speed`` picks each driver's Appendix A band and is its ``v_desired``. ``kind`` is
-    ``"typical"``, ``"atypical"`` or ``"malicious"`` (see the module docstring). All
-    randomness comes from ``rng``.
+    ``"typical"``, ``"atypical"``, ``"malicious"`` or ``"naturalistic"`` (see the module
+    docstring). All randomness comes from ``rng``.
     """
     if kind not in KINDS:
         raise ValueError(f"unknown driver kind {kind!r}; use one of {KINDS}")

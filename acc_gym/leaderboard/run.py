@@ -69,8 +69,10 @@ def versions() -> dict:
         except metadata.PackageNotFoundError:
             out[name.replace("-", "_")] = None
     import acc_gym
+    from acc_gym.drivers.mpc import MODEL_VERSION
 
     out["acc_gym"] = acc_gym.__version__
+    out["driver_model"] = MODEL_VERSION  # the surrounding MPC drivers' behaviour (acc_gym.drivers.mpc)
     return out
 
 

@@ -177,7 +177,7 @@ def test_scalar_set_params_equals_the_array_path():
         assert fast._qp_follow[i] is ref._qp_follow[i] and fast._qp_cruise[i] is ref._qp_cruise[i]
 
 
-@pytest.mark.parametrize("kind", ["typical", "atypical", "malicious"])
+@pytest.mark.parametrize("kind", ["typical", "atypical", "malicious", "naturalistic"])
 def test_one_driver_sampler_equals_sample_drivers(kind):
     """``sample_driver_values`` (plain numbers) draws what ``sample_drivers(rng, 1, ...)`` draws,
     bit for bit and field by field, and leaves the generator in the same state; speeds on

@@ -67,7 +67,7 @@ def test_population_accelerate_sail_brake_and_braking_start(approach_population)
 
 def test_sampler_is_self_consistent_and_deterministic():
     rng = np.random.default_rng(7)
-    for kind in ("typical", "atypical", "malicious"):
+    for kind in ("typical", "atypical", "malicious", "naturalistic"):
         p = sample_drivers(np.random.default_rng(7), 500, np.random.default_rng(1).uniform(5, 38, 500), kind)
         assert np.all(p.a_min <= 1.5 * p.a_req_sail + 1e-12)
         assert np.all(p.a_req_sail < p.a_sail)
@@ -86,6 +86,14 @@ def test_sampler_is_self_consistent_and_deterministic():
     assert np.all((typ.a_max >= lo - 1e-9) & (typ.a_max <= hi + 1e-9))
     assert np.all((aty.a_max <= lo + 1e-9) | (aty.a_max >= hi - 1e-9))
     assert np.all(mal.c_tg < 0.8 + 1e-12) and np.all(mal.a_min < -7.0)
+    # naturalistic: the whole distribution (before the self-consistency clips, which touch
+    # a_min and a_req_sail but never a_max above its floor): a_max covers the tails and the
+    # centre in the tables' proportions (Table A1's five-number summary: 10 % below q10)
+    nat = sample_drivers(np.random.default_rng(1), 2000, spd, "naturalistic")
+    below, above = np.mean(nat.a_max < lo), np.mean(nat.a_max > hi)
+    assert 0.07 <= below <= 0.13 and 0.07 <= above <= 0.13, (below, above)
+    assert np.all(nat.a_max >= quantile(TABLE_A1_MAX_ACCEL, band, 0.0) - 1e-9)
+    assert np.all(nat.a_max <= quantile(TABLE_A1_MAX_ACCEL, band, 1.0) + 1e-9)
 
 
 def test_quantile_reads_the_five_number_summary():
