@@ -233,7 +233,7 @@ class Gipps(_SpeedModel):
 
 @dataclass(frozen=True)
 class GMParams:
-    c: float | np.ndarray = 12.0  # sensitivity [m^(l-m+1) s^(m-1)]; with m=0, l=1: 12 m/s
+    c: float | np.ndarray = 12.0  # sensitivity [m^(l-m) s^(m-1)]; with m=0, l=1: 12 m/s
     m: float | np.ndarray = 0.0  # speed exponent
     l: float | np.ndarray = 1.0  # gap exponent
     tau: float | np.ndarray = 1.0  # [s] reaction time T
