@@ -223,6 +223,9 @@ def _main(argv=None) -> int:
     sub.add_parser("controllers", help="list the controllers registered by name, and where each comes from")
     _add_campaign_parser(sub)
     _add_leaderboard_parser(sub)
+    from acc_gym.risk import cli as risk_cli
+
+    risk_cli.add_parser(sub)
     plugins = cli_plugins()  # e.g. acc-gym train, from the acc_gym.cli entry points
     for plugin in plugins.values():
         plugin.add_parser(sub)
@@ -237,6 +240,8 @@ def _main(argv=None) -> int:
         return _campaign(args, parser)
     if args.command == "leaderboard":
         return _leaderboard(args, parser)
+    if args.command == "risk":
+        return risk_cli.run(args, parser)
     if args.command in ("scenarios", "score"):
         try:
             print(_scenarios(args) if args.command == "scenarios" else _score(args))
@@ -402,6 +407,11 @@ def _add_leaderboard_parser(sub) -> None:
     p.add_argument("--sandbox", choices=("process", "bwrap"), default="process",
                    help="how controllers are contained: process (own process, session, limits and, as root, "
                         "user id) or bwrap (bubblewrap: read-only root, no network, own PID namespace)")
+    p.add_argument("--risk", action="store_true",
+                   help="add each controller's collision probability per encounter, estimated by importance "
+                        "sampling in the same sandbox (acc-gym risk; slower)")
+    p.add_argument("--risk-family", default="cut-in", help="the family of --risk (default cut-in)")
+    p.add_argument("--risk-budget", type=int, default=4096, help="episodes per controller for --risk (default 4096)")
     p.add_argument("--json", action="store_true", help="print the ranking as one JSON object")
 
 
@@ -423,7 +433,8 @@ def _leaderboard(args, parser) -> int:
             by_name = {c["name"]: c for c in results["controllers"]}
             print(json.dumps({"ranking": [{"controller": n, "rank": by_name[n]["rank"], "status": by_name[n]["status"],
                                            "reason": by_name[n]["reason"],
-                                           "summary": by_name[n]["summary"] and by_name[n]["summary"]["overall"]}
+                                           "summary": by_name[n]["summary"] and by_name[n]["summary"]["overall"],
+                                           **({"risk": by_name[n].get("risk")} if args.risk else {})}
                                           for n in results["ranking"]], "out": str(args.out)}), flush=True)
         else:
             m = results["manifest"]
@@ -440,7 +451,8 @@ def _leaderboard(args, parser) -> int:
         results = run_leaderboard(suites, args.split, args.controllers, out=args.out, workers=args.workers,
                                   step_budget=args.step_budget, budget=args.budget, episodes=args.episodes,
                                   report=not args.no_report, progress=progress, sandbox=args.sandbox, show=show,
-                                  secret=secret)
+                                  secret=secret, risk={"family": args.risk_family, "budget": args.risk_budget}
+                                  if args.risk else None)
     except (OutputError, RuntimeError) as exc:  # a failed write, or a sandbox this machine cannot give
         print(f"acc-gym leaderboard: error: {exc}", file=sys.stderr)
         return 1

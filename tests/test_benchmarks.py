@@ -73,3 +73,17 @@ def test_bench_leaderboard_json_keys():
     assert out["pipe_us_per_row"] == out["pipe_us_per_round_trip"] / 4
     assert len(out["leaderboard_wall_s_runs"]) == 1 and out["leaderboard_wall_s"] == out["leaderboard_wall_s_runs"][0]
     assert "ratio" not in out  # only with --against
+
+
+def test_bench_risk_json_keys():
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_risk.py"), "--json", "--quick", "--workers",
+                        "1"], capture_output=True, text=True, check=True, cwd=ROOT)
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    keys = {"controller", "family", "method", "p", "ci_low", "ci_high", "episodes", "acceleration", "validates"}
+    assert out["cases"] and all(keys <= set(c) for c in out["cases"])
+    crude = {f"{c['controller']}/{c['family']}" for c in out["cases"] if c["method"] == "crude"}
+    checked = [c for c in out["cases"] if c["validates"]]
+    assert checked and all(c["method"] == "is" and c["validates"] in crude for c in checked)
+    assert all(c["acceleration"] == 1.0 for c in out["cases"] if c["method"] == "crude")
+    assert all(0.0 <= c["ci_low"] <= c["p"] <= c["ci_high"] <= 1.0 for c in out["cases"])
+    assert 0.0 <= out["coverage"]["coverage"] <= 1.0 and out["coverage"]["runs"] == 2

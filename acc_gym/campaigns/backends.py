@@ -29,39 +29,44 @@ from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from acc_gym._process import die_with_parent
-from acc_gym.campaigns.episodes import ChunkTask, run_chunk
+from acc_gym.campaigns.episodes import run_chunk
 from acc_gym.campaigns.errors import CampaignError, require_distributed
 
 RETRIES = 2
 
 
-def run_inline(tasks: list[ChunkTask]) -> Iterator[tuple[ChunkTask, list[dict]]]:
+def _number(task) -> int:
+    """A task's chunk number (a campaign's ``ChunkTask.chunk.number``, or the task's own ``number``)."""
+    return task.number if hasattr(task, "number") else task.chunk.number
+
+
+def run_inline(tasks: list, fn=run_chunk) -> Iterator[tuple[object, list[dict]]]:
     for task in tasks:
-        yield task, run_chunk(task)
+        yield task, fn(task)
 
 
 def pool_context():
     return multiprocessing.get_context("spawn")
 
 
-def run_pool(tasks: list[ChunkTask], workers: int) -> Iterator[tuple[ChunkTask, list[dict]]]:
+def run_pool(tasks: list, workers: int, fn=run_chunk) -> Iterator[tuple[object, list[dict]]]:
     if not tasks:
         return
     pool = ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=pool_context(),
                                initializer=die_with_parent, initargs=(os.getpid(),))
     try:
-        pending = {pool.submit(run_chunk, task): task for task in tasks}
+        pending = {pool.submit(fn, task): task for task in tasks}
         while pending:
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in sorted(done, key=lambda f: pending[f].chunk.number):
+            for fut in sorted(done, key=lambda f: _number(pending[f])):
                 task = pending.pop(fut)
                 yield task, fut.result()
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def run_dask(tasks: list[ChunkTask], scheduler, workers: int, fingerprint: str) \
-        -> Iterator[tuple[ChunkTask, list[dict]]]:
+def run_dask(tasks: list, scheduler, workers: int, fingerprint: str, fn=run_chunk) \
+        -> Iterator[tuple[object, list[dict]]]:
     distributed = require_distributed()
     cluster = None
     if isinstance(scheduler, distributed.Client):
@@ -83,8 +88,8 @@ def run_dask(tasks: list[ChunkTask], scheduler, workers: int, fingerprint: str) 
             return
         by_key = {}
         for task in tasks:
-            key = f"acc-gym-chunk-{fingerprint}-{task.chunk.number}"
-            fut = client.submit(run_chunk, task, key=key, retries=RETRIES, pure=False)
+            key = f"acc-gym-chunk-{fingerprint}-{_number(task)}"
+            fut = client.submit(fn, task, key=key, retries=RETRIES, pure=False)
             by_key[fut.key] = task
             futures.append(fut)
         for fut in distributed.as_completed(futures):
@@ -98,10 +103,12 @@ def run_dask(tasks: list[ChunkTask], scheduler, workers: int, fingerprint: str) 
             cluster.close()
 
 
-def execute(tasks: list[ChunkTask], *, workers: int, scheduler, fingerprint: str):
-    """The ``(task, rows)`` pairs of ``tasks`` run on the chosen backend."""
+def execute(tasks: list, *, workers: int, scheduler, fingerprint: str, fn=run_chunk):
+    """The ``(task, rows)`` pairs of ``tasks`` run on the chosen backend (``fn(task)``: a
+    campaign's :func:`~acc_gym.campaigns.episodes.run_chunk` by default, or another
+    module-level function, e.g. :func:`acc_gym.risk.episodes.run_chunk`)."""
     if scheduler is not None:
-        return run_dask(tasks, scheduler, workers, fingerprint)
+        return run_dask(tasks, scheduler, workers, fingerprint, fn)
     if workers == 1:
-        return run_inline(tasks)
-    return run_pool(tasks, workers)
+        return run_inline(tasks, fn)
+    return run_pool(tasks, workers, fn)

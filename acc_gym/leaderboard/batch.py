@@ -48,12 +48,24 @@ class BatchRuns:
         self.obs[row] = self.core.observe(*self.bounds, dtype=np.float32)[row]
         self.active[row] = True
 
+    def start_many(self, rows, scenarios, time_gap: float | None = None) -> None:
+        """:meth:`start` for several rows in one reset (the same result, fewer calls)."""
+        rows = [int(r) for r in rows]
+        self.core.reset_rows(rows, [None] * len(rows), list(scenarios), [time_gap] * len(rows))
+        self.obs[rows] = self.core.observe(*self.bounds, dtype=np.float32)[rows]
+        self.active[rows] = True
+
     def idle(self, row: int) -> None:
         """Nothing more to run in ``row``: its last scenario's ego alone (no surrounding
         drivers to solve for), unrecorded, unreported."""
-        self.core.reset_rows([row], [None], [dataclasses.replace(self.core.scenarios[row],
-                                                                 vehicles=self.core.scenarios[row].vehicles[:1])])
-        self.active[row] = False
+        self.idle_many([row])
+
+    def idle_many(self, rows) -> None:
+        """:meth:`idle` for several rows in one reset."""
+        rows = [int(r) for r in rows]
+        self.core.reset_rows(rows, [None] * len(rows), [dataclasses.replace(self.core.scenarios[r],
+                                                        vehicles=self.core.scenarios[r].vehicles[:1]) for r in rows])
+        self.active[rows] = False
 
     def step(self, rows: np.ndarray, actions: np.ndarray) -> dict[int, dict]:
         """Apply ``actions`` (float32, finite) to ``rows`` (the active ones; the others get 0);

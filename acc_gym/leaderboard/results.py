@@ -22,6 +22,17 @@ the mean paper score, share qualified, collisions per hour and minimum TTC side 
 Nothing in the scores or the ranking depends on timing or on how many controllers ran
 in parallel.
 
+Uncertainty (:mod:`acc_gym.leaderboard.uncertainty`): every mean and share in a summary has
+a 95 % interval beside it (``KEY_ci``: ``[low, high]``; a percentile bootstrap over
+episodes for means, Clopper-Pearson for shares of episodes, ``collisions_per_hour_ci`` the
+collision rate's scaled to hours), and :func:`rank` gives each ranked controller below the
+first a ``vs_above``: its mean points minus the row above's over the episodes both ran,
+with a 95 % paired bootstrap interval, ``significant`` when that excludes 0. A row whose
+difference is not significant is shown as a **tie** (column "vs above") in the text,
+Markdown, CSV and HTML tables; the order stays the points ranking's. The tables print an
+interval as ``77.7 [75.1, 80.2]``; the CSV keeps numbers, one column per end
+(``points_ci_low``, ``points_ci_high``, ...).
+
 Files (all written atomically: a temporary file in the same directory, then
 ``os.replace``, so a reader sees the old file or the new one, never half of one):
 
@@ -57,11 +68,14 @@ import numpy as np
 from acc_gym._io import atomic_write, json_safe  # noqa: F401  (re-exported)
 
 from acc_gym.evaluation.runner import summarise
+from acc_gym.leaderboard import uncertainty
 
 FORMAT = "acc_gym.leaderboard/1"
 HOUR = 3600.0
 RANKING_RULE = ("controllers rank by mean points (each suite weighs the same); an episode's points are its paper 003 "
-                "100-point score, or 0 if it ended in a collision; means equal within 1e-6 share a rank")
+                "100-point score, or 0 if it ended in a collision; means equal within 1e-6 share a rank; a row whose "
+                "paired difference in points to the row above has a 95 % paired bootstrap interval containing 0 is "
+                "marked a tie (vs_above; the order is unchanged)")
 
 
 def canonical_json(obj) -> str:
@@ -106,12 +120,18 @@ def overall_summary(per_suite: dict) -> dict:
 
 
 def summarise_controller(episodes: list[dict], suites: list[str]) -> dict:
-    per_suite = {name: suite_summary([e for e in episodes if e["suite"] == name]) for name in suites}
-    return {"overall": overall_summary(per_suite), "suites": per_suite}
+    """Each suite's summary and the overall one, with their 95 % intervals (``*_ci``)."""
+    by_suite = {name: [e for e in episodes if e["suite"] == name] for name in suites}
+    per_suite = {name: suite_summary(eps) for name, eps in by_suite.items()}
+    overall = overall_summary(per_suite)
+    uncertainty.add_intervals(per_suite, overall, by_suite)
+    return {"overall": overall, "suites": per_suite}
 
 
 def rank(controllers: list[dict]) -> list[str]:
-    """Names in ranking order (see the module docstring); sets each entry's ``rank``."""
+    """Names in ranking order (see the module docstring); sets each entry's ``rank`` and
+    ``vs_above`` (:func:`acc_gym.leaderboard.uncertainty.compare` with the ranked row above;
+    ``None`` for the first and the failed ones)."""
     from acc_gym.reproducibility import SCORE_TOLERANCE
 
     def points(c):
@@ -121,14 +141,29 @@ def rank(controllers: list[dict]) -> list[str]:
     failed = sorted((c for c in controllers if c["status"] != "ok"), key=lambda c: c["name"])
     for c in ok:  # 1 + how many are better by more than the tolerance: equal figures share a rank
         c["rank"] = 1 + sum(points(o) > points(c) + SCORE_TOLERANCE for o in ok)
+    for above, c in zip([None, *ok], ok):
+        c["vs_above"] = None if above is None else uncertainty.compare(above, c)
     for c in failed:
         c["rank"] = None
+        c["vs_above"] = None
     return [c["name"] for c in ok + failed]
 
 
 # -- tables ---------------------------------------------------------------------------------
 COLUMNS = ("rank", "controller", "status", "points", "score", "qualified", "collisions_per_hour", "comfortable",
-           "safe_spacing", "min_ttc_s", "max_jerk_mps3", "episodes", "wall_time_s", "reason")
+           "safe_spacing", "min_ttc_s", "max_jerk_mps3", "episodes", "wall_time_s", "reason", "vs_above",
+           "vs_above_diff", "vs_above_ci_low", "vs_above_ci_high")
+RISK_COLUMNS = ("risk_p", "risk_ci_low", "risk_ci_high", "risk_upper_bound", "risk_episodes")  # with --risk
+#: table columns with an interval, and the summary figure they show
+INTERVALS = {"points": "mean_points", "score": "mean_score", "qualified": "share_qualified",
+             "collisions_per_hour": "collisions_per_hour", "comfortable": "share_comfortable",
+             "safe_spacing": "share_safe_spacing"}
+
+
+def _interval_columns(results: dict) -> list[tuple[str, str | None, str]]:
+    """(column, suite or None for overall, summary key) of every column with an interval."""
+    return [(col, None, key) for col, key in INTERVALS.items()] + \
+        [(f"points[{s['name']}]", s["name"], "mean_points") for s in results["manifest"]["suites"]]
 
 
 def table_rows(results: dict) -> list[dict]:
@@ -147,13 +182,37 @@ def table_rows(results: dict) -> list[dict]:
         for suite in results["manifest"]["suites"]:
             s = c["summary"]["suites"][suite["name"]] if c["summary"] else None
             row[f"points[{suite['name']}]"] = s and s["mean_points"]
+        if _has_risk(results):
+            r = c.get("risk") or {}
+            row["risk"] = c.get("risk")
+            for col in RISK_COLUMNS:
+                row[col] = r.get(col[len("risk_"):])
+        vs = c.get("vs_above")
+        row["vs_above"] = uncertainty.verdict(vs)
+        row["vs_above_diff"] = vs["diff"] if vs else None
+        row["vs_above_ci_low"], row["vs_above_ci_high"] = vs["ci"] if vs else (None, None)
+        for col, suite, key in _interval_columns(results):
+            part = (c["summary"]["overall"] if suite is None else c["summary"]["suites"][suite]) \
+                if c["summary"] else None
+            ci = part.get(f"{key}_ci") if part else None
+            row[f"{col}_ci_low"], row[f"{col}_ci_high"] = ci if ci else (None, None)
         rows.append(row)
     return rows
 
 
+def _has_risk(results: dict) -> bool:
+    return bool((results["manifest"].get("settings") or {}).get("risk"))
+
+
 def _fmt(key: str, value) -> str:
+    if key == "risk":
+        from acc_gym.risk.isolated import format_risk
+
+        return format_risk(value)
     if value is None:
         return "-"
+    if key == "vs_above":
+        return value
     if key in ("qualified", "comfortable", "safe_spacing"):
         return f"{value:.0%}"
     if key == "wall_time_s":
@@ -167,24 +226,45 @@ HEADERS = {"rank": "#", "controller": "controller", "status": "status", "points"
            "qualified": "qualified",
            "collisions_per_hour": "collisions/h", "comfortable": "comfortable", "safe_spacing": "safe spacing",
            "min_ttc_s": "min TTC [s]", "max_jerk_mps3": "max jerk [m/s^3]", "episodes": "episodes",
-           "wall_time_s": "time [s]"}
+           "wall_time_s": "time [s]", "vs_above": "vs above"}
 
 
 def display_columns(results: dict) -> list[tuple[str, str]]:
     """(key, header) of the printed / Markdown / HTML ranking table."""
-    cols = [(k, HEADERS[k]) for k in ("rank", "controller", "status", "points", "score", "qualified",
+    cols = [(k, HEADERS[k]) for k in ("rank", "controller", "status", "points", "vs_above", "score", "qualified",
                                        "collisions_per_hour", "min_ttc_s", "comfortable", "safe_spacing",
                                        "max_jerk_mps3")]
     suites = results["manifest"]["suites"]
     if len(suites) > 1:
         cols += [(f"points[{s['name']}]", s["name"]) for s in suites]
+    if _has_risk(results):
+        cols.append(("risk", f"P(collision) per {results['manifest']['settings']['risk']['family']}"))
     return cols + [("episodes", "episodes"), ("wall_time_s", "time [s]")]
 
 
+def _fmt_interval(key: str, value, low, high) -> str:
+    """``value [low, high]`` (a share: ``78% [73, 82]``, its ends in percent)."""
+    text = _fmt(key, value)
+    if value is None or low is None:
+        return text
+    if key in ("qualified", "comfortable", "safe_spacing"):
+        return f"{text} [{100 * low:.0f}, {100 * high:.0f}]"
+    return f"{text} [{_fmt(key, float(low))}, {_fmt(key, float(high))}]"
+
+
 def formatted_rows(results: dict) -> tuple[list[str], list[list[str]]]:
+    """Headers and the rows of text of the ranking table: figures with an interval as
+    ``value [low, high]``, ties to the row above as ``tie`` in "vs above"."""
     cols = display_columns(results)
-    rows = [[_fmt(k, row[k]) for k, _ in cols] for row in table_rows(results)]
+    with_ci = {col for col, _, _ in _interval_columns(results)}
+    rows = [[_fmt_interval(k, row[k], row[f"{k}_ci_low"], row[f"{k}_ci_high"]) if k in with_ci else _fmt(k, row[k])
+             for k, _ in cols] for row in table_rows(results)]
     return [h for _, h in cols], rows
+
+
+UNCERTAINTY_NOTE = ("[low, high]: 95 % intervals (means: percentile bootstrap over episodes; qualified and collisions: "
+                    "Clopper-Pearson); vs above: 'tie' when the paired difference in points to the row above is not "
+                    "significant (95 % paired bootstrap interval contains 0), 'worse' when it is")
 
 
 def text_table(results: dict) -> str:
@@ -194,6 +274,7 @@ def text_table(results: dict) -> str:
     lines = ["  ".join(h.ljust(w) for h, w in zip(headers, widths)),
              "  ".join("-" * w for w in widths)]
     lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    lines += [UNCERTAINTY_NOTE]
     lines += [f"failed: {c['name']}: {c['reason']}" for c in results["controllers"] if c["status"] != "ok"]
     return "\n".join(lines)
 
@@ -210,7 +291,7 @@ def markdown(results: dict) -> str:
     lines = ["# acc_gym leaderboard", "",
              (f"Split `{m['split']}` of {suites}; ranked by mean points: paper 003's 100-point score, 0 for an "
               f"episode that ended in a collision (each suite weighs the same; equal figures share a rank). "
-              f"acc_gym {m['versions']['acc_gym']}, {m['created']}."), "",
+              f"acc_gym {m['versions']['acc_gym']}, {m['created']}."), "", UNCERTAINTY_NOTE + ".", "",
              "| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
     lines += ["| " + " | ".join(esc(c) for c in r) + " |" for r in rows]
     failed = [c for c in results["controllers"] if c["status"] != "ok"]
@@ -222,11 +303,11 @@ def markdown(results: dict) -> str:
 def csv_text(results: dict) -> str:
     rows = table_rows(results)
     buf = io.StringIO()
-    fields = list(rows[0]) if rows else list(COLUMNS)
+    fields = [f for f in rows[0] if f != "risk"] if rows else list(COLUMNS)  # risk: its numeric risk_* columns
     writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
     writer.writeheader()
     for row in rows:
-        writer.writerow({k: "" if v is None else v for k, v in row.items()})
+        writer.writerow({k: "" if v is None else v for k, v in row.items() if k != "risk"})
     return buf.getvalue()
 
 
@@ -303,6 +384,10 @@ def load_results(path, key=_NO_KEY) -> dict:
     if actual != doc["sha256"]:
         raise ValueError(f"leaderboard results {str(path)!r} are corrupted: their checksum does not match "
                          f"(stored {str(doc['sha256'])[:12]}..., computed {actual[:12]}...)")
+    try:
+        uncertainty.check_results(doc["results"])
+    except ValueError as exc:
+        raise ValueError(f"leaderboard results {str(path)!r} are malformed: {exc}") from None
     if key is not None:
         if "hmac" not in doc:
             raise ValueError(f"leaderboard results {str(path)!r} are not signed, and a results key is set: they "

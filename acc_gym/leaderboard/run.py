@@ -161,10 +161,30 @@ def sandbox_settings(refs: list[str], sandbox: str) -> tuple[dict, dict]:
     return uids, {"kind": sandbox, "uid_isolated": possible, "why_not": why or None}
 
 
+def _risk_settings(risk) -> dict | None:
+    """``risk`` with its defaults; ``ValueError`` naming an unknown option or a bad family."""
+    if risk is None or risk is False:
+        return None
+    if risk is True:
+        risk = {}
+    if not isinstance(risk, dict):
+        raise ValueError(f"risk must be a dict of options (family, budget, target_rhw) or True, got {risk!r}")
+    unknown = set(risk) - {"family", "budget", "target_rhw"}
+    if unknown:
+        raise ValueError(f"unknown risk option(s) {sorted(unknown)}; use family, budget, target_rhw")
+    from acc_gym.risk.run import _check, resolve_family
+
+    out = {"family": "cut-in", "budget": 4096, "target_rhw": 0.2, **risk}
+    resolve_family(out["family"])
+    out["budget"] = _check("risk budget", out["budget"], integer=True)
+    out["target_rhw"] = _check("risk target_rhw", out["target_rhw"], upper=1.0)
+    return out
+
+
 def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=None, workers: int = DEFAULT_WORKERS,
                     step_budget: float = DEFAULT_STEP_BUDGET, budget: float = DEFAULT_BUDGET,
                     episodes: int | None = None, report: bool = True, progress=None, sandbox: str = "process",
-                    show=None, secret=None) -> dict:
+                    show=None, secret=None, risk: dict | None = None) -> dict:
     """Score ``controllers`` on ``suites`` (names; default all) and rank them; returns the results dict.
 
     ``out``: a directory to write results.json, results.csv, leaderboard.md, (with
@@ -177,6 +197,11 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     ``split``: ``"dev"``, ``"test"`` or ``"private"``; the private split's episodes come from
     ``secret`` (bytes or text; default: the ``ACC_GYM_LEADERBOARD_SECRET`` environment
     variable) and the manifest records only its commitment (:mod:`acc_gym.suites.private`).
+    ``risk``: also estimate each controller's collision probability per encounter of a
+    family by importance sampling, through the same sandbox
+    (:func:`acc_gym.risk.isolated.leaderboard_risk`; a dict of its options: ``family``
+    (default ``"cut-in"``), ``budget`` (episodes, default 4096), ``target_rhw`` (0.2)); the
+    estimate goes into each controller's ``risk`` and a column of the table.
     """
     from acc_gym.leaderboard.provenance import code_digest
     from acc_gym.suites import SPLITS, get_suite, list_suites
@@ -225,6 +250,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                            "episodes_defined": len(built), "episodes_run": len(run),
                            "hours": sum(sc.duration for sc in run) / 3600.0})
     code = {ref: code_digest(ref) for ref in refs}  # located, never run, in this process
+    risk = _risk_settings(risk)
 
     t0 = time.monotonic()
     created = datetime.now(timezone.utc).isoformat(timespec="seconds")
@@ -241,6 +267,14 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
         if staging is not None:
             shutil.rmtree(staging, ignore_errors=True)
         raise
+    risks = {}
+    if risk is not None:
+        from acc_gym.risk.isolated import leaderboard_risk
+
+        run_kwargs = {"workers": 1, "step_budget": step_budget, "budget": budget, "log_dir": logs, "uids": uids,
+                      "sandbox": sandbox}
+        risks = {ref: leaderboard_risk(ref, **risk, run_kwargs=run_kwargs) for ref, o in outcomes.items()
+                 if o.status == "ok"}
     entries, trace_map = [], {}
     for ref, o in outcomes.items():
         notes = []
@@ -254,7 +288,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                         "traceback": o.traceback, "wall_time_s": o.wall_time_s, "notes": notes,
                         "log": f"logs/{Path(o.log).name}" if staging is not None else o.log,
                         "summary": summarise_controller(o.episodes, names) if o.status == "ok" else None,
-                        "episodes": o.episodes})
+                        "episodes": o.episodes, **({"risk": risks.get(ref)} if risk is not None else {})})
     ranking = rank(entries)
     manifest = {
         "format": "acc_gym.leaderboard/1", "created": created, "versions": versions(),
@@ -262,7 +296,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
         "suites": suite_info, "split": split, "episodes_cap": episodes, "controllers": refs,
         "secret_commitment": private_split.commitment(secret) if split == private_split.PRIVATE else None,
         "settings": {"workers": workers, "step_budget_s": step_budget, "budget_s": budget,
-                     "start_method": START_METHOD, "in_flight": IN_FLIGHT},
+                     "start_method": START_METHOD, "in_flight": IN_FLIGHT, "risk": risk},
         "sandbox": sandbox_info, "ranking_rule": RANKING_RULE,
         "results_key_id": None if key is None else signature({}, key)["key_id"],
         "timings": {"total_wall_s": time.monotonic() - t0,

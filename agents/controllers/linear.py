@@ -7,6 +7,7 @@ Observation indices (see :class:`acc_gym.envs.acc_env.ACCEnv`): 0 speed, 1 accel
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -15,6 +16,8 @@ import numpy as np
 class _Policy:
     accel_max: float = 3.0  # [m/s^2] the env's action scaling (EnvConfig.accel_max)
     decel_max: float = 8.0  # [m/s^2] (EnvConfig.decel_max)
+    # predict() answers an (n, obs) array row by row: acc_gym.risk batches episodes through it
+    vectorised: ClassVar[bool] = True
 
     def reset(self) -> None:
         pass
@@ -44,12 +47,22 @@ class LinearACC(_Policy):
     s0: float = 2.5  # [m]
     k_cruise: float = 0.4  # [1/s]
     a_comfort: float = 2.0  # [m/s^2] cruise-law bound
+    brake_limit: float | None = None  # [m/s^2] the most it brakes (None: the env's decel_max)
 
     def _accel(self, o: np.ndarray) -> np.ndarray:
         v, gap, v_rel, seen, v_set, h = o[:, 0], o[:, 2], o[:, 3], o[:, 4] > 0.5, o[:, 5], o[:, 6]
         cruise = np.clip(self.k_cruise * (v_set - v), -self.a_comfort, self.a_comfort)
         follow = self.k2 * v_rel + self.k1 * (gap - self.s0 - h * v)
-        return np.where(seen, np.minimum(follow, cruise), cruise)
+        a = np.where(seen, np.minimum(follow, cruise), cruise)
+        return a if self.brake_limit is None else np.maximum(a, -float(self.brake_limit))
+
+
+def iso_acc(brake_limit: float = 3.5) -> LinearACC:
+    """The linear ACC with an ACC system's braking authority: ISO 15622 lets an ACC brake at
+    most 3.5 m/s^2 (5 m/s^2 at low speed in later editions) and leaves the rest to the
+    driver. Not registered by name: ``acc_gym_agents.controllers.linear:iso_acc``
+    (``benchmarks/bench_risk.py`` uses it and weaker ones)."""
+    return LinearACC(brake_limit=brake_limit)
 
 
 @dataclass

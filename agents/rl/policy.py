@@ -32,6 +32,8 @@ class SB3Policy:
     stable-baselines3 model itself or its numpy export (:class:`acc_gym_agents.rl.mlp.NumpyActor`).
     """
 
+    vectorised = True  # predict() answers an (n, obs) array row by row (acc_gym.risk batches through it)
+
     def __init__(self, model, mean: np.ndarray, var: np.ndarray, clip: float = 10.0, eps: float = 1e-8,
                  residual: str | None = None, residual_scale: float | None = None, shield: str | bool | None = None,
                  residual_kwargs: dict | None = None, max_overspeed: float | None = None):

@@ -1,0 +1,421 @@
+"""The accelerated evaluation: adaptive cross-entropy rounds, then estimation rounds, resumable.
+
+:func:`estimate_risk` runs, for one controller and one scenario family:
+
+1. **Adaptive rounds** (``method="is"``): round 0 draws ``round_size`` episodes from the
+   nominal laws; each round's episodes give the level ``gamma = max(L, rho-quantile of
+   S)`` (``S``: the episode's smallest time-to-collision, 0 for a collision;
+   ``L``: the failure level, 0 for ``event="collision"``, 1 s for ``event="ttc"``) and
+   the elite ``S <= gamma`` -- the failures themselves once a round has at least
+   ``max(MIN_FAILURES, rho n / 5)`` of them, and then the failures of every adaptive round
+   so far, each weighed by its own round's ratio (all unbiased for the CE objective
+   ``E_p[f log g]``), unsmoothed -- from which :meth:`Proposal.fit
+   <acc_gym.risk.proposal.Proposal.fit>` makes the next proposal. The rounds stop when
+   ``gamma`` reaches ``L`` (the proposal is then fitted to failures themselves), when two
+   rounds lowered it by less than 5 % (stalled: a controller that never fails keeps a
+   positive smallest time-to-collision however the scenario is tilted), or after
+   ``max_rounds``.
+2. **Estimation rounds**: episodes from the last proposal -- a pilot round of
+   ``round_size``, then rounds sized from the estimate so far to reach the target (see
+   ``_planned``) -- until the relative half-width of the estimate is at most
+   ``target_rhw`` with at least ``MIN_FAILURES`` failures, or ``budget`` episodes
+   (adaptive rounds included) are spent; :class:`RiskResult` says which. The estimate pools the estimation rounds
+   only (the adaptive rounds' weights are valid too, but their proposals are poor).
+
+``method="crude"`` skips step 1: the proposal is the nominal law (every weight 1). When
+no adaptive round saw a single failure and the level never reached ``L`` (the controller
+does not fail anywhere the rounds looked), the estimation rounds draw from the nominal
+law too: what is left to report is an upper bound, and nominal draws give the tightest
+exact one (:func:`acc_gym.risk.estimate.upper_bound`).
+
+Stopping when the interval is narrow enough is a sequential rule; its effect on the
+interval's coverage is small at the sample sizes used here, and the coverage study
+(``tests/risk/test_risk_coverage.py``, ``benchmarks/bench_risk.py``) measures it.
+
+**Resume.** With ``out`` set, every finished chunk is written there
+(``r<round>-c<chunk>.json``, atomically) beside ``risk.json`` (the settings). A run
+started again with the same settings reads the chunks it finds and runs the rest: the
+proposals are recomputed from the stored episodes, so they come out the same. Different
+settings in the same directory are refused, naming the difference.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from acc_gym._io import atomic_write
+from acc_gym.risk.episodes import CHUNK, RiskChunk, performance, run_chunk
+from acc_gym.risk.estimate import MIN_FAILURES, Estimate, estimate
+from acc_gym.risk.proposal import SMOOTHING, Proposal, tilted_keys
+
+FAMILIES = {  # short names of the single-lane families (any scenario id is accepted too)
+    "cut-in": "singlelane/2/cut-in", "approach": "singlelane/2/approach", "following": "singlelane/2/car-following",
+    "cut-out": "singlelane/2/cut-out", "lane-change": "singlelane/2/lane-change", "separate": "singlelane/2/separate",
+}
+EVENTS = {"collision": 0.0, "ttc": 1.0}  # failure level L of S [s]: collision S <= 0, min TTC < 1 s
+RHO = 0.1  # elite share of an adaptive round
+STALL = 0.95  # adaptive rounds stop when two rounds lowered the level by less than 5 %
+SETTINGS_FILE = "risk.json"
+
+
+def resolve_family(family: str) -> str:
+    """The scenario id a family name stands for; ``ValueError`` naming an unknown one."""
+    from acc_gym.scenarios.registry import list_scenarios
+
+    if not isinstance(family, str):
+        raise ValueError(f"family must be a name or a scenario id, got {family!r}")
+    sid = FAMILIES.get(family, family)
+    if sid not in list_scenarios():
+        raise ValueError(f"unknown family {family!r}: use one of {sorted(FAMILIES)} or a scenario id "
+                         "(acc-gym scenarios lists them)")
+    return sid
+
+
+def env_for(scenario_id: str) -> str:
+    from acc_gym.envs.registration import ENV_IDS
+    from acc_gym.scenarios.registry import scenario_type
+
+    fam = scenario_type(scenario_id).family
+    for env_id, families in ENV_IDS.items():
+        if fam in families:
+            return env_id
+    raise ValueError(f"no environment runs the {fam!r} family of {scenario_id!r}")
+
+
+def failed(s: np.ndarray, event: str) -> np.ndarray:
+    """Which performances ``S`` are failures of ``event``."""
+    return s <= 0.0 if event == "collision" else s < EVENTS[event]
+
+
+@dataclass
+class RiskResult:
+    """What :func:`estimate_risk` found."""
+
+    controller: str
+    family: str
+    scenario_id: str
+    method: str
+    event: str
+    estimate: Estimate  # of the event the run targeted
+    other: Estimate  # of the other event, from the same episodes
+    stop: str  # "target reached" or "budget spent"
+    episodes: int  # all of them, adaptive rounds included
+    rounds: list = field(default_factory=list)  # per round: kind, episodes, level, elite, failures
+    proposal: dict | None = None
+    occurrence_rate: float | None = None  # [1/h] of the family in an hour of traffic
+    wall_time_s: float = 0.0
+    min_ttc: float | None = None  # the smallest time-to-collision seen in the whole run [s]
+
+    def per_hour(self, est: Estimate | None = None) -> dict | None:
+        """The estimate as events per hour of driving (times the family's occurrence rate)."""
+        est = est or self.estimate
+        if self.occurrence_rate is None:
+            return None
+        r = self.occurrence_rate
+        return {"rate": est.p * r, "ci_low": est.ci_low * r, "ci_high": est.ci_high * r,
+                "upper_bound": None if est.upper_bound is None else est.upper_bound * r}
+
+    def to_dict(self) -> dict:
+        return {"controller": self.controller, "family": self.family, "scenario_id": self.scenario_id,
+                "method": self.method, "event": self.event, "estimate": self.estimate.to_dict(),
+                "per_hour": self.per_hour(), "other": self.other.to_dict(), "other_per_hour": self.per_hour(self.other),
+                "stop": self.stop, "episodes": self.episodes, "rounds": self.rounds, "proposal": self.proposal,
+                "occurrence_rate": self.occurrence_rate, "wall_time_s": self.wall_time_s, "min_ttc": self.min_ttc}
+
+
+def _check(name: str, value, *, positive=True, integer=False, upper=None):
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or (integer and int(value) != value) or not math.isfinite(float(value)) \
+            or (positive and value <= 0) or (upper is not None and value > upper):
+        what = "a positive integer" if integer else "a positive number"
+        raise ValueError(f"{name} must be {what}" + (f" at most {upper}" if upper else "") + f", got {value!r}")
+    return int(value) if integer else float(value)
+
+
+class _Store:
+    """The run's directory: settings and finished chunks (or nothing when ``out`` is None)."""
+
+    def __init__(self, out, settings: dict):
+        self.dir = None if out is None else Path(out)
+        self.settings = settings
+        if self.dir is None:
+            return
+        self.dir.mkdir(parents=True, exist_ok=True)
+        path = self.dir / SETTINGS_FILE
+        if path.exists():
+            try:
+                old = json.loads(path.read_text())
+            except (OSError, ValueError) as exc:
+                raise ValueError(f"{path}: not a risk run's settings ({exc}); use another directory") from None
+            if old != settings:
+                diff = sorted(k for k in set(old) | set(settings) if old.get(k) != settings.get(k))
+                raise ValueError(f"{self.dir} holds a risk run with other settings ({', '.join(diff)}); "
+                                 "use another directory or the same settings")
+        else:
+            atomic_write(path, json.dumps(settings, indent=1, sort_keys=True))
+
+    def _path(self, rnd: int, number: int) -> Path:
+        return self.dir / f"r{rnd:03d}-c{number:04d}.json"
+
+    def load(self, chunk: RiskChunk) -> list[dict] | None:
+        if self.dir is None:
+            return None
+        path = self._path(chunk.round, chunk.number)
+        if not path.exists():
+            return None
+        try:
+            data = json.loads(path.read_text())
+            ok = (data["proposal"] == chunk.proposal and data["start"] == chunk.start and data["size"] == chunk.size
+                  and len(data["episodes"]) == chunk.size)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise ValueError(f"{path}: a damaged chunk file ({exc}); delete it and run again (it is recomputed)") \
+                from None
+        if not ok:
+            raise ValueError(f"{path}: this chunk was run with another proposal or other episodes; delete it and "
+                             "run again (it is recomputed)")
+        for r in data["episodes"]:
+            r["min_ttc"] = math.inf if r["min_ttc"] is None else r["min_ttc"]
+            r["min_gap"] = math.inf if r["min_gap"] is None else r["min_gap"]
+        return data["episodes"]
+
+    def save(self, chunk: RiskChunk, records: list[dict]) -> None:
+        if self.dir is None:
+            return
+        clean = [{**r, "min_ttc": r["min_ttc"] if math.isfinite(r["min_ttc"]) else None,
+                  "min_gap": r["min_gap"] if math.isfinite(r["min_gap"]) else None} for r in records]
+        atomic_write(self._path(chunk.round, chunk.number), json.dumps(
+            {"proposal": chunk.proposal, "start": chunk.start, "size": chunk.size, "episodes": clean}))
+
+
+def _fingerprint(settings: dict) -> str:
+    return hashlib.sha256(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def estimate_risk(controller, family: str = "cut-in", *, event: str = "collision", method: str = "is",
+                  target_rhw: float = 0.2, budget: int = 20000, round_size: int = 256, max_rounds: int = 10,
+                  root_seed: int = 0, drivers: str = "typical", workers: int = 1, scheduler=None, out=None,
+                  progress: bool = False, beta: float | None = None, params: dict | None = None) -> RiskResult:
+    """P(collision) (or P(min TTC < 1 s)) per encounter of ``family`` for ``controller``.
+
+    ``controller``: a registered name, ``"module:attribute"``, a saved model's path (what
+    the leaderboard accepts) or, with ``workers=1`` and no scheduler, an object with
+    ``predict``. See the module docstring for the rounds and :mod:`acc_gym.risk` for the
+    method. ``round_size`` is rounded up to whole chunks of 64 episodes. ``params`` fixes
+    some of the scenario's parameters (name -> value; a correlated pair both or neither):
+    the estimate is then conditional on them (e.g. ``{"v_sv": 33.3}``: cut-ins at 120 km/h),
+    and only the others are tilted.
+    """
+    from acc_gym.scenarios.registry import scenario_type
+
+    if event not in EVENTS:
+        raise ValueError(f"unknown event {event!r}; use one of {sorted(EVENTS)}")
+    if method not in ("is", "crude"):
+        raise ValueError(f"unknown method {method!r}; use 'is' (importance sampling) or 'crude' (Monte Carlo)")
+    target_rhw = _check("target_rhw", target_rhw, upper=1.0)
+    budget = _check("budget", budget, integer=True)
+    round_size = CHUNK * math.ceil(_check("round_size", round_size, integer=True) / CHUNK)
+    max_rounds = _check("max_rounds", max_rounds, integer=True)
+    workers = _check("workers", workers, integer=True)
+    if isinstance(root_seed, bool) or not isinstance(root_seed, (int, np.integer)) or root_seed < 0:
+        raise ValueError(f"root_seed must be a non-negative integer, got {root_seed!r}")
+    is_object = not isinstance(controller, str)
+    if is_object and (workers > 1 or scheduler is not None or out is not None):
+        raise ValueError("a controller given as an object runs in this process only (workers=1, no scheduler, no "
+                         "out directory); give its name or 'module:attribute' to run in parallel or resume")
+    from acc_gym.evaluation.runner import load_controller
+
+    load_controller(controller)  # a bad reference fails here, by name, before any episode
+    sid = resolve_family(family)
+    stype = scenario_type(sid)
+    env_id = env_for(sid)
+    from acc_gym.scenarios.registry import check_params
+
+    fixed = check_params(sid, params)
+    stype.sample_params(np.random.default_rng(0), fixed)  # unknown or half-given pairs named here
+    keys = [k for k in tilted_keys(stype.parameters) if not set((k,) if isinstance(k, str) else k) & set(fixed)]
+    if not keys:
+        raise ValueError(f"every parameter of {sid!r} that could be tilted is fixed by params={fixed!r}")
+    if method == "crude":
+        beta = 1.0
+    elif beta is None:
+        from acc_gym.risk.proposal import DEFENSIVE
+
+        beta = DEFENSIVE
+    proposal = Proposal(dict(stype.parameters), {k: stype.parameters[k] for k in keys}, beta)
+    label = controller if isinstance(controller, str) else repr(controller)
+    settings = {"controller": label, "scenario_id": sid, "event": event, "method": method, "target_rhw": target_rhw,
+                "budget": budget, "round_size": round_size, "max_rounds": max_rounds, "root_seed": int(root_seed),
+                "drivers": drivers, "beta": beta, "params": fixed, "version": _version()}
+    if out is not None and isinstance(controller, str):
+        from acc_gym.leaderboard.provenance import code_digest
+
+        settings["controller_code"] = code_digest(controller).get("sha256")
+    store = _Store(out, settings)
+    fp = _fingerprint(settings)
+    bar = _progress(progress, budget)
+    started = time.monotonic()
+    spent = 0
+    min_ttc = math.inf
+
+    def run_round(rnd: int, prop: Proposal, size: int) -> list[dict]:
+        nonlocal spent, min_ttc
+        pdict = prop.to_dict()
+        chunks = [RiskChunk(sid, pdict, controller, int(root_seed), rnd, k * CHUNK, CHUNK, env_id, drivers, k, fixed)
+                  for k in range(size // CHUNK)]
+        got: dict[int, list[dict]] = {}
+        todo = []
+        for c in chunks:
+            old = store.load(c)
+            if old is None:
+                todo.append(c)
+            else:
+                got[c.number] = old
+                bar(len(old))
+        if todo:
+            from acc_gym.campaigns.backends import execute
+
+            for c, recs in execute(todo, workers=workers, scheduler=scheduler, fingerprint=f"risk-{fp}-r{rnd}",
+                                   fn=run_chunk):
+                store.save(c, recs)
+                got[c.number] = recs
+                bar(len(recs))
+        recs = [r for k in sorted(got) for r in got[k]]
+        spent += len(recs)
+        s = performance(recs)
+        if s.size:
+            min_ttc = min(min_ttc, float(np.min(s)))
+        return recs
+
+    adaptive = method == "is"
+    proposal, pooled, rounds, stop = search(proposal, run_round, performance, event=event, budget=budget,
+                                            round_size=round_size, max_rounds=max_rounds if adaptive else 0,
+                                            target_rhw=target_rhw)
+    bar(None)
+    exposure = sum(r["episodes"] * r["beta"] for r in rounds)
+    est = _estimate(pooled, performance(pooled), event, spent, exposure)
+    other_event = "ttc" if event == "collision" else "collision"
+    other = _estimate(pooled, performance(pooled), other_event, spent, exposure)
+    rate = stype.occurrence_rate
+    return RiskResult(label, family, sid, method, event, est, other, stop, spent, rounds,
+                      proposal.to_dict() if adaptive else None,
+                      None if rate is None else float(rate.mean), time.monotonic() - started,
+                      None if not math.isfinite(min_ttc) else min_ttc)
+
+
+def search(proposal: Proposal, simulate, perf, *, event: str = "collision", budget: int, round_size: int,
+           max_rounds: int, target_rhw: float) -> tuple[Proposal, list[dict], list[dict], str]:
+    """The rounds of the module docstring, for any simulation.
+
+    ``simulate(round, proposal, size)`` returns ``size`` records (dicts with ``params``:
+    name -> value of the tilted parameters, ``log_w`` and ``nominal`` as
+    :func:`acc_gym.risk.episodes.run_chunk` makes them); ``perf(records)`` their
+    performances ``S``. Returns the last proposal, the estimation rounds' records, a
+    summary per round and why it stopped (``"target reached"`` or ``"budget spent"``).
+    """
+    level = EVENTS[event]
+    rounds: list[dict] = []
+    spent = 0
+    rnd = 0
+    failures_seen: list[dict] = []  # of every adaptive round: each weighed against its own round's proposal
+    for _ in range(max_rounds):
+        if spent + round_size > budget:
+            break
+        recs = simulate(rnd, proposal, round_size)
+        spent += len(recs)
+        s = perf(recs)
+        finite = s[np.isfinite(s)]
+        gamma = max(level, float(np.quantile(finite, RHO))) if finite.size else math.inf
+        fails = failed(s, event)
+        if fails.sum() >= max(MIN_FAILURES, RHO * len(recs) / 5):
+            gamma = level  # enough failures to fit to (a collision's S jumps from ~0.4 s to 0: no level between)
+        elite = fails if gamma <= level else (s <= gamma)
+        rounds.append({"round": rnd, "kind": "adaptive", "episodes": len(recs), "level": gamma,
+                       "elite": int(elite.sum()), "failures": int(fails.sum()), "beta": proposal.beta})
+        rnd += 1
+        failures_seen.extend(r for r, f in zip(recs, fails) if f)
+        if not elite.any():
+            break  # nothing ever closed in: no direction to tilt towards
+        chosen = failures_seen if gamma <= level else [r for r, e in zip(recs, elite) if e]
+        w = np.exp(np.array([r["log_w"] for r in chosen]))
+        x = {n: np.array([r["params"][n] for r in chosen]) for n in proposal.names}
+        proposal = proposal.fit(x, w, 1.0 if gamma <= level else SMOOTHING)
+        if gamma <= level:
+            break
+        if len(rounds) >= 3 and gamma >= STALL * rounds[-3]["level"]:
+            break  # two rounds without getting 5 % closer: the failure region is out of reach (or not there)
+    if rounds and not any(r["failures"] for r in rounds) and rounds[-1]["level"] > level:
+        # nothing failed however the rounds tilted it: what is left is a bound, and the nominal
+        # law gives the tightest exact one (every draw counts fully in the exposure)
+        proposal = Proposal(proposal.nominal, {k: proposal.nominal[k] for k in proposal.tilted}, 1.0)
+    pooled: list[dict] = []
+    stop = "budget spent"
+    size = round_size  # the pilot round; then rounds planned from the estimate so far
+    while True:
+        remaining = budget - spent
+        if pooled and remaining < CHUNK:
+            break
+        size = min(size, max(CHUNK, CHUNK * (remaining // CHUNK)))
+        recs = simulate(rnd, proposal, size)
+        spent += len(recs)
+        pooled.extend(recs)
+        rounds.append({"round": rnd, "kind": "estimation", "episodes": len(recs), "level": level, "elite": None,
+                       "failures": int(failed(perf(recs), event).sum()), "beta": proposal.beta})
+        rnd += 1
+        est = _estimate(pooled, perf(pooled), event, spent, sum(r["episodes"] * r["beta"] for r in rounds))
+        if est.failures >= MIN_FAILURES and est.rhw <= target_rhw:
+            stop = "target reached"
+            break
+        size = _planned(est, len(pooled), target_rhw, round_size)
+    return proposal, pooled, rounds, stop
+
+
+def _planned(est: Estimate, n: int, target_rhw: float, round_size: int) -> int:
+    """Episodes to add so that the pooled estimate reaches ``target_rhw`` (its half-width
+    shrinks as ``1 / sqrt(n)``), with a 10 % margin, in whole chunks; a round's worth while
+    there are too few failures to plan from. Planning the rest in one round, rather than
+    looking after every round, keeps the number of looks -- and the optimism that stopping
+    at a lucky look adds to the interval -- small."""
+    if est.failures < MIN_FAILURES or not math.isfinite(est.rhw):
+        return round_size
+    need = n * ((est.rhw / target_rhw) ** 2 * 1.1 - 1.0)
+    return max(CHUNK, CHUNK * math.ceil(need / CHUNK))
+
+
+def _estimate(recs: list[dict], s: np.ndarray, event: str, spent: int, exposure: float) -> Estimate:
+    return estimate(np.array([r["log_w"] for r in recs]), failed(s, event), event=event, episodes_total=spent,
+                    exposure=exposure, nominal=np.array([r["nominal"] for r in recs]))
+
+
+def _version() -> str:
+    from importlib import metadata
+
+    try:
+        return metadata.version("acc-gym")
+    except metadata.PackageNotFoundError:  # pragma: no cover
+        return "unknown"
+
+
+def _progress(enabled: bool, total: int):
+    """A callable ``bar(n)`` advancing a progress bar by ``n`` episodes (``bar(None)`` closes it)."""
+    if not enabled:
+        return lambda n: None
+    try:
+        from tqdm import tqdm
+    except ImportError:  # without tqdm: nothing (the CLI prints each round)
+        return lambda n: None
+    bar = tqdm(total=total, unit="episode", desc="risk", leave=False)
+
+    def advance(n):
+        if n is None:
+            bar.close()
+        else:
+            bar.update(n)
+
+    return advance
