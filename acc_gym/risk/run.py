@@ -231,6 +231,10 @@ def estimate_risk(controller, family: str = "cut-in", *, event: str = "collision
                          "out directory); give its name or 'module:attribute' to run in parallel or resume")
     from acc_gym.evaluation.runner import load_controller
 
+    from acc_gym.scenarios.registry import DRIVER_CHOICES
+
+    if not isinstance(drivers, str) or drivers not in DRIVER_CHOICES:
+        raise ValueError(f"unknown drivers {drivers!r}; use one of {list(DRIVER_CHOICES)}")
     load_controller(controller)  # a bad reference fails here, by name, before any episode
     sid = resolve_family(family)
     stype = scenario_type(sid)

@@ -29,9 +29,21 @@ class RamOneByOne(Ram):
     vectorised = False
 
 
-def test_a_controller_that_collides_on_every_cut_in_gives_one_exactly():
-    # 10 m at entry, the cut-in vehicle 4 m/s slower: ramming it always ends in a collision
-    r = estimate_risk(Ram(), "cut-in", params={"gap": 10.0, "v_rel": -4.0}, budget=256, round_size=128)
+class Hold:
+    """A constant controller: action 0 (no acceleration asked) whatever it sees."""
+
+    vectorised = True
+
+    def predict(self, obs, deterministic=True):
+        o = np.atleast_2d(np.asarray(obs, dtype=float))
+        act = np.zeros((o.shape[0], 1), dtype=np.float32)
+        return (act[0] if np.ndim(obs) == 1 else act), None
+
+
+@pytest.mark.parametrize("controller", [Hold(), Ram()], ids=["constant", "ram"])
+def test_a_controller_that_collides_on_every_cut_in_gives_one_exactly(controller):
+    # 10 m at entry, the cut-in vehicle 4 m/s slower: holding speed (or ramming it) always collides
+    r = estimate_risk(controller, "cut-in", params={"gap": 10.0, "v_rel": -4.0}, budget=256, round_size=128)
     assert r.estimate.failures == r.estimate.episodes
     assert (r.estimate.p, r.estimate.ci_low, r.estimate.ci_high) == (1.0, 1.0, 1.0)
     assert r.other.p == 1.0  # a collision is also a time-to-collision under 1 s
@@ -127,6 +139,7 @@ def test_a_crashed_run_resumes_from_its_chunks(tmp_path, monkeypatch):
     (dict(budget=-5), "budget must be a positive integer"),
     (dict(params={"gap": 10.0, "color": 3}), "unknown parameter"),
     (dict(root_seed=-1), "root_seed"),
+    (dict(drivers="reckless"), "unknown drivers 'reckless'"),
 ])
 def test_bad_settings_are_named(kwargs, match):
     with pytest.raises(ValueError, match=match):
