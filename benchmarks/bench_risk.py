@@ -100,7 +100,7 @@ def main(argv=None) -> int:
     crude_n, budget, cov_runs = args.crude_episodes, args.budget, args.coverage_runs
     cov_budget = 8192
     if args.quick:
-        crude_n, budget, cov_runs, cov_budget = 256, 512, 2, 2048
+        crude_n, budget, cov_runs, cov_budget = 128, 256, 2, 1024
     kw = dict(workers=args.workers, root_seed=0)
     cases: list[dict] = []
     started = time.monotonic()

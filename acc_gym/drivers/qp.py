@@ -708,7 +708,7 @@ class QpsolversBackend(QPBackend):
             keep = h < INF / 2
             kwargs = {}
             if self.solver == "proxqp":
-                kwargs = dict(eps_abs=1e-10, eps_rel=0.0)
+                kwargs = dict(eps_abs=1e-10, eps_rel=0.0, max_iter=self.max_iter)
             hi_box = np.where(hi >= INF / 2, np.inf, hi)
             x = qpsolvers.solve_qp(np.array(self.qp.hessian), q, G[keep], h[keep], lb=lo, ub=hi_box,
                                    solver=self.solver, **kwargs)

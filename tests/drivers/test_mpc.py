@@ -231,8 +231,10 @@ def test_pickled_driver_continues_identically():
     assert np.allclose(out_a + rest_a, tr.a_des[1:, 1], atol=1e-9)
 
 
-@pytest.mark.parametrize("backend", ["proxsuite", "qpsolvers:quadprog"])
+@pytest.mark.parametrize("backend", [pytest.param("proxsuite", marks=pytest.mark.slow), "qpsolvers:quadprog"])
 def test_other_backends_drive_the_same(backend):
+    """Every step through the backend (no warm active set); ProxQP's run takes about 90 s with
+    proxsuite 0.8, so it is in the slow set (``python -m pytest -m slow``)."""
     ref = _run(MPCDriver(preset("#57"), settings=MPCSettings(warm_active_set=False)))
     other = _run(MPCDriver(preset("#57"), settings=MPCSettings(backend=backend, warm_active_set=False)))
     assert np.allclose(ref.a, other.a, atol=1e-6)
