@@ -36,7 +36,7 @@ import numpy as np
 from scipy.special import ndtr
 
 from acc_gym.risk import estimate_risk
-from acc_gym.risk.episodes import episode_draw
+from acc_gym.risk.episodes import draw_episodes
 from acc_gym.risk.estimate import estimate
 from acc_gym.risk.proposal import Proposal
 from acc_gym.risk.run import search
@@ -68,8 +68,7 @@ def coverage_study(runs: int, budget: int) -> dict:
     covered, ests, used = 0, [], []
     for seed in range(runs):
         def simulate(rnd, prop, size, seed=seed):
-            draws = [episode_draw(prop, 1000 + seed, rnd, i) for i in range(size)]
-            lw = prop.log_weight({"x": np.array([d[0]["x"] for d in draws])})
+            draws, lw = draw_episodes(prop, 1000 + seed, rnd, 0, size)
             return [{"params": d[0], "nominal": d[1], "log_w": float(lw[i]), "S": 4.0 - d[0]["x"]}
                     for i, d in enumerate(draws)]
 

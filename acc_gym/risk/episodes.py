@@ -65,6 +65,21 @@ def episode_draw(proposal: Proposal, root_seed: int, rnd: int, i: int) -> tuple[
     return params, nominal, seed
 
 
+def draw_episodes(proposal: Proposal, root_seed: int, rnd: int, start: int, n: int) -> tuple[list, np.ndarray]:
+    """Episodes ``start .. start + n - 1`` of round ``rnd``: their draws (:func:`episode_draw`)
+    and their log-weights."""
+    draws = [episode_draw(proposal, root_seed, rnd, start + k) for k in range(n)]
+    return draws, proposal.log_weight({name: np.array([d[0][name] for d in draws]) for name in proposal.names})
+
+
+def episode_record(episode: int, draw: tuple, log_w: float, metrics: dict, score: float) -> dict:
+    """What a risk run keeps of one episode: its draw and its outcome (the report's metrics)."""
+    params, nominal, seed = draw
+    return {"episode": episode, "params": params, "nominal": nominal, "seed": seed, "log_w": float(log_w),
+            "collision": bool(metrics["collision"]), "min_ttc": float(metrics["min_ttc"]),
+            "min_gap": float(metrics["min_gap"]), "score": float(score)}
+
+
 def _actions(controller, vectorised: bool, copies: list, obs: np.ndarray, starts: np.ndarray,
              rows: np.ndarray) -> np.ndarray:
     from acc_gym.evaluation.runner import _action, as_action
@@ -104,9 +119,7 @@ def run_chunk(chunk: RiskChunk) -> list[dict]:
     vectorised = bool(getattr(controller, "vectorised", False))
     declared = declared_time_gap(controller)
     n = chunk.size
-    draws = [episode_draw(proposal, chunk.root_seed, chunk.round, chunk.start + k) for k in range(n)]
-    names = proposal.names
-    log_w = proposal.log_weight({name: np.array([d[0][name] for d in draws]) for name in names})
+    draws, log_w = draw_episodes(proposal, chunk.root_seed, chunk.round, chunk.start, n)
     batch = BatchRuns(gym.make(chunk.env_id).unwrapped, n)
     fixed = dict(chunk.fixed or {})
     batch.start_many(range(n), [stype.build({**fixed, **params}, seed, chunk.drivers) for params, _, seed in draws],
@@ -122,14 +135,8 @@ def run_chunk(chunk: RiskChunk) -> list[dict]:
         finals.update(ended)
         if ended:
             batch.idle_many(sorted(ended))
-    out = []
-    for row, (params, nominal, seed) in enumerate(draws):
-        m = finals[row]["report"]["metrics"]
-        ttc = float(m["min_ttc"])
-        out.append({"episode": chunk.start + row, "params": params, "nominal": nominal, "seed": seed,
-                    "log_w": float(log_w[row]), "collision": bool(m["collision"]), "min_ttc": ttc,
-                    "min_gap": float(m["min_gap"]), "score": float(finals[row]["score"])})
-    return out
+    return [episode_record(chunk.start + row, draw, log_w[row], finals[row]["report"]["metrics"],
+                           finals[row]["score"]) for row, draw in enumerate(draws)]
 
 
 def performance(records: list[dict]) -> np.ndarray:

@@ -16,10 +16,9 @@ import math
 
 import numpy as np
 
-from acc_gym.risk.episodes import episode_draw, performance
-from acc_gym.risk.estimate import estimate
+from acc_gym.risk.episodes import draw_episodes, episode_record, performance
 from acc_gym.risk.proposal import DEFENSIVE, Proposal, tilted_keys
-from acc_gym.risk.run import env_for, failed, resolve_family, search
+from acc_gym.risk.run import env_for, estimate_records, exposure, resolve_family, search
 
 
 class RiskFailed(RuntimeError):
@@ -39,21 +38,15 @@ def isolated_simulator(reference: str, scenario_id: str, *, root_seed: int = 0, 
     kwargs = {"workers": 1, "step_budget": 1.0, "budget": 600.0, **(run_kwargs or {})}
 
     def simulate(rnd: int, prop: Proposal, size: int) -> list[dict]:
-        draws = [episode_draw(prop, root_seed, rnd, i) for i in range(size)]
-        log_w = prop.log_weight({n: np.array([d[0][n] for d in draws]) for n in prop.names})
+        draws, log_w = draw_episodes(prop, root_seed, rnd, 0, size)
         jobs = [Job("risk", f"round-{rnd}", i, env_id, stype.build(params, seed, drivers))
                 for i, (params, _, seed) in enumerate(draws)]
         outcome = run_isolated([reference], jobs, **kwargs)[reference]
         if outcome.status != "ok":
             raise RiskFailed(outcome.reason or "failed")
         by_episode = {r["episode"]: r for r in outcome.episodes}
-        out = []
-        for i, (params, nominal, seed) in enumerate(draws):
-            m = by_episode[i]["metrics"]
-            out.append({"episode": i, "params": params, "nominal": nominal, "seed": seed, "log_w": float(log_w[i]),
-                        "collision": bool(m["collision"]), "min_ttc": float(m["min_ttc"]),
-                        "min_gap": float(m["min_gap"]), "score": float(by_episode[i]["score"])})
-        return out
+        return [episode_record(i, draw, log_w[i], by_episode[i]["metrics"], by_episode[i]["score"])
+                for i, draw in enumerate(draws)]
 
     return simulate
 
@@ -78,10 +71,7 @@ def leaderboard_risk(reference: str, family: str = "cut-in", *, budget: int = 40
         return {"family": family, "scenario_id": sid, "failed": str(exc)}
     spent = sum(r["episodes"] for r in rounds)
     s = performance(pooled)
-    est = estimate(np.array([r["log_w"] for r in pooled]), failed(s, "collision"), episodes_total=spent,
-                   exposure=sum(r["episodes"] * r["beta"] for r in rounds),
-                   nominal=np.array([r["nominal"] for r in pooled]))
-    d = est.to_dict()
+    d = estimate_records(pooled, s, "collision", spent, exposure(rounds)).to_dict()
     return {"family": family, "scenario_id": sid, "p": d["p"], "ci_low": d["ci_low"], "ci_high": d["ci_high"],
             "upper_bound": d["upper_bound"], "failures": d["failures"], "episodes": spent,
             "acceleration": d["acceleration"], "stop": stop, "warnings": d["warnings"],

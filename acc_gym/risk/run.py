@@ -302,10 +302,9 @@ def estimate_risk(controller, family: str = "cut-in", *, event: str = "collision
                                             round_size=round_size, max_rounds=max_rounds if adaptive else 0,
                                             target_rhw=target_rhw)
     bar(None)
-    exposure = sum(r["episodes"] * r["beta"] for r in rounds)
-    est = _estimate(pooled, performance(pooled), event, spent, exposure)
-    other_event = "ttc" if event == "collision" else "collision"
-    other = _estimate(pooled, performance(pooled), other_event, spent, exposure)
+    s, e = performance(pooled), exposure(rounds)
+    est = estimate_records(pooled, s, event, spent, e)
+    other = estimate_records(pooled, s, "ttc" if event == "collision" else "collision", spent, e)
     rate = stype.occurrence_rate
     return RiskResult(label, family, sid, method, event, est, other, stop, spent, rounds,
                       proposal.to_dict() if adaptive else None,
@@ -372,7 +371,7 @@ def search(proposal: Proposal, simulate, perf, *, event: str = "collision", budg
         rounds.append({"round": rnd, "kind": "estimation", "episodes": len(recs), "level": level, "elite": None,
                        "failures": int(failed(perf(recs), event).sum()), "beta": proposal.beta})
         rnd += 1
-        est = _estimate(pooled, perf(pooled), event, spent, sum(r["episodes"] * r["beta"] for r in rounds))
+        est = estimate_records(pooled, perf(pooled), event, spent, exposure(rounds))
         if est.failures >= MIN_FAILURES and est.rhw <= target_rhw:
             stop = "target reached"
             break
@@ -392,7 +391,13 @@ def _planned(est: Estimate, n: int, target_rhw: float, round_size: int) -> int:
     return max(CHUNK, CHUNK * math.ceil(need / CHUNK))
 
 
-def _estimate(recs: list[dict], s: np.ndarray, event: str, spent: int, exposure: float) -> Estimate:
+def exposure(rounds: list[dict]) -> float:
+    """The run's exposure: every episode's nominal share, summed (:func:`acc_gym.risk.estimate.upper_bound`)."""
+    return float(sum(r["episodes"] * r["beta"] for r in rounds))
+
+
+def estimate_records(recs: list[dict], s: np.ndarray, event: str, spent: int, exposure: float) -> Estimate:
+    """The estimate of ``event`` from records and their performances ``s``."""
     return estimate(np.array([r["log_w"] for r in recs]), failed(s, event), event=event, episodes_total=spent,
                     exposure=exposure, nominal=np.array([r["nominal"] for r in recs]))
 

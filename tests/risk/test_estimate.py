@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.special import ndtr
 
-from acc_gym.risk.episodes import episode_draw
+from acc_gym.risk.episodes import draw_episodes
 from acc_gym.risk.estimate import crude_episodes, estimate, upper_bound
 from acc_gym.risk.proposal import Proposal
 from acc_gym.risk.run import search
@@ -17,10 +17,8 @@ def _toy(laws: dict, fail_margin):
     """A simulation without a simulator: ``S = fail_margin(params)`` (failure when S <= 0)."""
 
     def simulate(rnd, prop, size, seed=0):
-        draws = [episode_draw(prop, seed, rnd, i) for i in range(size)]
-        x = {n: np.array([d[0][n] for d in draws]) for n in prop.names}
-        lw = prop.log_weight(x)
-        s = fail_margin(x)
+        draws, lw = draw_episodes(prop, seed, rnd, 0, size)
+        s = fail_margin({n: np.array([d[0][n] for d in draws]) for n in prop.names})
         return [{"params": d[0], "nominal": d[1], "log_w": float(lw[i]), "S": float(s[i])}
                 for i, d in enumerate(draws)]
 
