@@ -44,8 +44,9 @@ C_BETA = C_ALPHA + K_TERM
 # Settings vector
 S_DT, S_ZOH, S_HYST, S_CREEP, S_PULL, S_FEAS, S_LEADACC, S_SLACK_LIN, S_WARM, S_COAST_FADE, S_SHORT, S_STOP = range(12)
 # Work matrix columns (outputs)
-W_U0, W_TARGET, W_AREQ, W_PATH, W_TH0, W_TH1, W_LOWER0, W_UPPER0, W_DR, W_MODE_PRE, W_VIOL, W_SLACK, W_ITER, W_ANEED = range(14)
-N_WORK = 14  # theta = (W_TH0, W_TH1, u_prev)
+W_U0, W_TARGET, W_AREQ, W_PATH, W_TH0, W_TH1, W_LOWER0, W_UPPER0, W_DR, W_MODE_PRE, W_VIOL, W_SLACK, W_ITER, W_ANEED, \
+    W_FLOOR0 = range(15)
+N_WORK = 15  # theta = (W_TH0, W_TH1, u_prev)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -93,12 +94,26 @@ def coast_distance(P, S, i, v):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def mode_limits(P, S, i, m, v, u_prev, a_need):
+def decel_label(u0, coast, tol):
+    """The label of a decelerating mode's applied first input ``u0`` [m/s^2]: SAIL at the
+    coasting deceleration ``coast`` (pedals released), BRAKE below it, and ACCELERATE above
+    it (the throttle still on, ramping down at the jerk bound after an escalation)."""
+    if u0 < coast - tol:
+        return BRAKE
+    if u0 > coast + tol:
+        return ACCELERATE
+    return SAIL
+
+
+@numba.njit(cache=True, error_model="numpy")
+def mode_limits(P, S, i, m, v, u_prev, a_need, floor0):
     """``(lower0, upper0, env_lo, env_hi, rate)`` of driver ``i`` in mode ``m``: the first
     input's range (mode, ramp and vehicle), the plan's range and its per-step change bound.
 
     ``a_need`` [m/s^2]: the constant deceleration that would stop the closing on the most
-    demanding real target at ``x_min`` (0 if not closing); it sets the emergency range."""
+    demanding real target at ``x_min`` (0 if not closing); it sets the emergency range.
+    ``floor0`` [m/s^2]: in ACCELERATE, the least first input (reached at the jerk bound):
+    0 while rolling on at creep speed towards a stopped target (see ``_one``), else -inf."""
     dt = S[S_DT]
     a_up, a_lo = vehicle_limits(P, i, v)
     a_max, a_min, a_sail = P[i, A_MAX], P[i, A_MIN], coast_decel(P, S, i, v)
@@ -125,18 +140,21 @@ def mode_limits(P, S, i, m, v, u_prev, a_need):
     upper0 = min(max(mode_hi, u_prev - rate0), u_prev + rate0)
     if m == EMERGENCY:
         # no driver lets go of the brake when it realises it needs more: in an emergency the
-        # first input keeps at least the current braking (unless that is harder than the
-        # emergency range itself, whose lower edge then rules), and deepens at the emergency jerk
-        upper0 = max(lower0, min(upper0, u_prev))
+        # first input keeps at least the current braking and at least the constant deceleration
+        # a_need that stops clear (reached at the emergency jerk; the plan cannot postpone it),
+        # unless that is harder than the emergency range itself, whose lower edge then rules
+        upper0 = max(lower0, min(upper0, u_prev, a_need))
+    elif m == ACCELERATE and floor0 > lower0:
+        lower0 = max(lower0, min(floor0, u_prev + rate0, upper0))
     return lower0, upper0, env_lo, env_hi, rate
 
 
 @numba.njit(cache=True, error_model="numpy")
-def fill_bounds(P, S, i, m, v, u_prev, a_need, lower, upper):
+def fill_bounds(P, S, i, m, v, u_prev, a_need, floor0, lower, upper):
     """Input box, speed and rate rows of driver ``i`` in mode ``m``; returns (lower0, upper0)."""
     n = (lower.shape[1] - 2 * K_TERM) // 5
     dt = S[S_DT]
-    lower0, upper0, env_lo, env_hi, rate = mode_limits(P, S, i, m, v, u_prev, a_need)
+    lower0, upper0, env_lo, env_hi, rate = mode_limits(P, S, i, m, v, u_prev, a_need, floor0)
     lower[i, 0] = lower0
     upper[i, 0] = upper0
     for k in range(1, n):
@@ -677,7 +695,12 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         queue = t_real == STOP or v_lead[i] <= S[S_PULL]
         if u0 <= best or m != ACCELERATE or queue:
             target, th0, th1 = t_real, t0, t1
-    lower0, upper0, env_lo, env_hi, rate = mode_limits(P, S, i, m, v, up, a_need)
+    # rolling on towards a stopped target at creep speed (coasting would stop it short), the
+    # driver no longer slows down: a weak distance weight would otherwise approach the queue
+    # exponentially, never arriving; it rolls on until coasting reaches the stopping point
+    floor0 = 0.0 if (m == ACCELERATE and short and v <= creep) else -np.inf
+    W[i, W_FLOOR0] = floor0
+    lower0, upper0, env_lo, env_hi, rate = mode_limits(P, S, i, m, v, up, a_need, floor0)
     W[i, W_TARGET] = target
     W[i, W_AREQ] = areq
     W[i, W_DR] = dR
@@ -736,7 +759,7 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         act_count[i] = 0
         path = FAST
     else:  # some constraint is active: the bounds are needed in memory from here on
-        fill_bounds(P, S, i, m, v, up, a_need, lower, upper)
+        fill_bounds(P, S, i, m, v, up, a_need, floor0, lower, upper)
         fill_target_rows(P, S, i, v, gap[i], v_lead[i], stop_gap[i], aseq[i], lower, upper)
     if path < 0 and warm:
         # --- warm active set: last step's, shifted along the horizon
@@ -763,8 +786,8 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
             if m == EMERGENCY:
                 stats[i, ST_EMERGENCY] += 1
         else:
-            # SAIL: the pedals released (the coasting deceleration); anything harder: BRAKE
-            mode[i] = SAIL if min(max(plan[i, 0], lower0), upper0) >= coast_decel(P, S, i, v) - 1e-7 else BRAKE
+            # SAIL: the pedals released (the coasting deceleration); harder: BRAKE; above it: still ACCELERATE
+            mode[i] = decel_label(min(max(plan[i, 0], lower0), upper0), coast_decel(P, S, i, v), 1e-7)
     else:
         W[i, W_U0] = np.nan
         W[i, W_PATH] = QP

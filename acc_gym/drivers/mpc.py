@@ -104,7 +104,12 @@ from acc_gym.vehicle import VehicleParams, accel_lower
 # 2 (acc-gym 0.4.0): the modes mean their names (coasting is SAIL, any harder deceleration is
 # BRAKE, ACCELERATE only with the brake released), queues are approached under the target's
 # law and every stop ends braking (issue 23); EMERGENCY never releases the brake on entry.
-MODEL_VERSION = 2
+# 3 (acc-gym 0.5.0): an emergency's first input is at least the deceleration that stops clear
+# (a_need); a decelerating plan short only on the conservative terminal chords brakes at its
+# own limits instead of escalating; rolling on at creep speed towards a stopped target does
+# not slow down; a decelerating mode's input above coasting is labelled ACCELERATE; sampled
+# drivers' distance weight q1 = q1n (20/v)^4, q1n log-uniform in [0.04, 2.8] (population.py).
+MODEL_VERSION = 3
 
 
 class Mode(IntEnum):
@@ -327,6 +332,10 @@ class MPCSettings:
     stop_speed: float = 0.3  # [m/s] below it, closing on a stopped target, the driver brakes to a standstill
     feas_tol: float = 1e-7  # accept the unconstrained law if no constraint is violated by more
     slack_tol: float = 1e-3  # [m or m/s] slack above this escalates the mode
+    # [m or m/s] ... except a decelerating plan that keeps every row but the terminal chords
+    # within this, and the exact terminal condition the chords approximate: the driver brakes
+    # at its own limits (riding a_min to x_min), not in an emergency (see _only_chords_short)
+    brake_slack_tol: float = 0.05
     slack_linear: float = 1e9  # exact-penalty weight of the slack (above any multiplier of a far target)
     slack_quadratic: float = 1e4  # quadratic weight of the slack
     warm_active_set: bool = True  # try last step's active set (KKT-verified) before the backend
@@ -345,7 +354,7 @@ class MPCSettings:
             if int(getattr(self, name)) <= 0:
                 raise ValueError(f"MPCSettings.{name} must be > 0, got {getattr(self, name)!r}")
         for name in ("hysteresis", "creep_speed", "pull_away_speed", "coast_fade_speed", "stop_short_margin", "stop_speed",
-                     "feas_tol", "slack_tol"):
+                     "feas_tol", "slack_tol", "brake_slack_tol"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"MPCSettings.{name} must be >= 0, got {value!r}")
@@ -622,7 +631,8 @@ class MPCDriver:
         W = self._W
         if int(W[i, K.W_PATH]) in (K.FAST, K.HOLD):  # the fast paths never write the bounds: do it now
             v, u_prev, gap, v_lead, _, stop_gap = (float(arr[i]) for arr in self._last_arrays)
-            K.fill_bounds(self._P, self._S, i, int(W[i, K.W_MODE_PRE]), v, u_prev, W[i, K.W_ANEED], self._lower,
+            K.fill_bounds(self._P, self._S, i, int(W[i, K.W_MODE_PRE]), v, u_prev, W[i, K.W_ANEED], W[i, K.W_FLOOR0],
+                          self._lower,
                           self._upper)
             K.fill_target_rows(self._P, self._S, i, v, gap, v_lead, stop_gap, self._aseq[i], self._lower,
                                self._upper)
@@ -709,6 +719,54 @@ class MPCDriver:
         self._last_used[key] = self._step
         return backend, backend.solve(q, self._lower[i], self._upper[i], start)
 
+    def _only_chords_short(self, i: int, u: np.ndarray, arrays) -> bool:
+        """Whether the plan ``u`` (no slack) keeps every row of driver ``i``'s current bounds
+        but the terminal chords, and the exact terminal condition they approximate, within
+        ``MPCSettings.brake_slack_tol``: from the plan's end, braking at ``a_min`` (reached at
+        ``jerk_max``) stops clear of every real target, ``room_N >= w_N^2 / (2 b) + w_N b /
+        (2 jerk_max)`` (``b = -a_min``, ``w_N`` the closing speed at the end, ``room_N`` the
+        gap beyond ``x_min`` or to the stop).
+
+        The chords lie above that curve by up to ``v_max^2 / (8 K_TERM^2 b)`` (metres at
+        highway speeds), so a driver braking at its own ``a_min`` can lose their recursive
+        feasibility while the stop itself is in reach. And a plan braking at ``a_min`` to
+        a stop at ``x_min`` must release the brake at the jerk bound before the standstill,
+        which rolls ``b^3 / (24 jerk_max^2)`` further than the constant braking the stop
+        needs (0.10 m for ``a_min = -2.5``, ``jerk_max = 2.5``): a real car's deceleration
+        drops to 0 as it stops (the driver's own final stop does so, see the HOLD path), so
+        this release distance is added to the tolerance. Neither is an emergency."""
+        N = self.horizon.n_steps
+        b, jerk = -self._P[i, K.A_MIN], self._P[i, K.JERK]
+        tol = self.settings.brake_slack_tol + b ** 3 / (24.0 * jerk * jerk)
+        z = np.append(u, 0.0)
+        values = np.concatenate([z, self.horizon.constraint_matrix(self._beta[i]) @ z])
+        keep = np.ones(values.size, dtype=bool)
+        keep[5 * N:] = False  # the 2 K_TERM terminal rows (layout in acc_gym.drivers.qp)
+        keep[N] = False  # the slack itself
+        lo, hi = self._lower[i], self._upper[i]
+        if np.any(values[keep] < lo[keep] - tol) or np.any(values[keep] > hi[keep] + tol):
+            return False
+        tv, tp = self.horizon.matrices
+        v, gap, v_lead, stop_gap = (float(arrays[j][i]) for j in (0, 2, 3, 5))
+        x_min = self._P[i, K.X_MIN]
+        tn = N * self.settings.dt
+        dp, dv = float(tp[-1] @ u), float(tv[-1] @ u)
+        v_n = v + dv
+
+        def stopping(w):
+            w = max(w, 0.0)
+            return w * w / (2.0 * b) + w * b / (2.0 * jerk)
+
+        if np.isfinite(gap):
+            aseq = self._aseq[i]
+            dpl, dvl = float(tp[-1] @ aseq), float(tv[-1] @ aseq)
+            room = gap + tn * v_lead + dpl - tn * v - dp - x_min
+            if room < stopping(v_n - (v_lead + dvl)) - tol:
+                return False
+        if np.isfinite(stop_gap) and stop_gap - tn * v - dp < stopping(v_n) - tol:
+            return False
+        return True
+
     def _solve_one(self, i: int, arrays) -> None:
         """Backend solve for driver ``i``, with mode escalation on slack and a counted fallback."""
         W = self._W
@@ -730,8 +788,14 @@ class MPCDriver:
         escalate = {K.ACCELERATE: [(K.BRAKE, a_need), (K.EMERGENCY, a_need), (K.EMERGENCY, -np.inf)],
                     K.EMERGENCY: [(K.EMERGENCY, -np.inf)]}.get(m, [(K.EMERGENCY, a_need), (K.EMERGENCY, -np.inf)])
         while res.ok and res.z[N] > s.slack_tol and escalate:
+            # decelerating, a plan that needs slack only on the terminal chords (conservative by
+            # up to v_max^2 / (8 K_TERM^2 |a_min|) metres) while it keeps every other row and the
+            # exact terminal condition is within the driver's own limits: it brakes, no emergency
+            if (m == K.SAIL or m == K.BRAKE) and self._only_chords_short(i, res.z[:N], arrays):
+                break
             m, a_need = escalate.pop(0)
-            lower0, upper0 = K.fill_bounds(self._P, self._S, i, m, v, u_prev, a_need, self._lower, self._upper)
+            lower0, upper0 = K.fill_bounds(self._P, self._S, i, m, v, u_prev, a_need, W[i, K.W_FLOOR0], self._lower,
+                                           self._upper)
             W[i, K.W_LOWER0], W[i, K.W_UPPER0], W[i, K.W_MODE_PRE] = lower0, upper0, m
             if v + s.dt * upper0 <= 0.0:  # stopping inside the step anyway
                 res = None
@@ -767,8 +831,8 @@ class MPCDriver:
                 self.mode[i] = m
                 st[K.ST_EMERGENCY] += m == K.EMERGENCY
             else:
-                # SAIL: the pedals released (the coasting deceleration); anything harder: BRAKE
-                self.mode[i] = K.SAIL if u0 >= K.coast_decel(self._P, self._S, i, v) - 1e-6 else K.BRAKE
+                # SAIL: the pedals released (the coasting deceleration); harder: BRAKE; above it: still ACCELERATE
+                self.mode[i] = K.decel_label(u0, K.coast_decel(self._P, self._S, i, v), 1e-6)
             return
         # --- fallback: stop behind the most demanding real target at x_min, or keep the plan
         W[i, K.W_PATH] = K.FALLBACK

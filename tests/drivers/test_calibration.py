@@ -69,7 +69,12 @@ def test_recovers_table4_weights_to_one_percent_and_says_what_the_trace_identifi
     res = calibrate_weights(t, v, lead, gap0, base)
     assert res.q1 == pytest.approx(truth[0], rel=0.01) and res.r1 == pytest.approx(truth[1], rel=0.01)
     assert res.rmse < 1e-6 and all(e < 1e-6 for e in res.std_error.values())
-    assert -1.0 <= res.correlation < -0.9  # raising both weights together barely changes the drive
+    if name == "#13":
+        # #13 (a_min = -1.0) brakes at its own limit behind the lead's -1.8 m/s^2: the limited
+        # stretch separates the weights' effects (correlation -0.26, both identified)
+        assert -0.9 < res.correlation < 0.9 and all(res.identified.values())
+    else:
+        assert -1.0 <= res.correlation < -0.9  # raising both weights together barely changes the drive
     for w in ("q1", "r1"):
         assert res.profile[w] == pytest.approx(res.sensitivity[w] * np.sqrt(1 - res.correlation ** 2))
         assert res.identified[w] == (res.profile[w] >= IDENTIFIED)

@@ -22,6 +22,11 @@ def entries_and_releases(tr):
     return len(k), int(np.sum(a[k + 1, b] > a[k, b] + 1e-9))
 
 
+# the lead's braking [m/s^2]: malicious drivers brake at 85-95 % of the tyre limit, so a lead
+# stopping at 6 m/s^2 is within their own limits (no EMERGENCY at all); 8 m/s^2 is not
+LEAD_BRAKE = {"typical": 6.0, "atypical": 6.0, "malicious": 8.0}
+
+
 @pytest.mark.parametrize("kind", ["typical", "atypical", "malicious"])
 def test_no_brake_release_on_entering_an_emergency(kind):
     rng = np.random.default_rng([23, ["typical", "atypical", "malicious"].index(kind)])
@@ -36,9 +41,9 @@ def test_no_brake_release_on_entering_an_emergency(kind):
     assert releases == 0
     assert np.all(tr.gap[:, :, 1] > 0)
     total_entries += entries
-    # 2. following a lead that cruises, then brakes at 6 m/s^2 to a stop, from a 1 s gap
+    # 2. following a lead that cruises, then brakes at 6 (8) m/s^2 to a stop, from a 1 s gap
     v = np.minimum(speeds, 30.0)
-    t_stop = v / 6.0
+    t_stop = v / LEAD_BRAKE[kind]
     lead_speeds = np.stack([np.interp(np.arange(0, 40.2, 0.2), [0.0, 10.0, 10.0 + ts, 40.0], [vi, vi, 0.0, 0.0])
                             for vi, ts in zip(v, t_stop)])
     lead = SpeedProfile(np.arange(0, 40.2, 0.2), lead_speeds)
