@@ -2,8 +2,8 @@
 test split, for tuning a controller on one and ranking it on the other.
 
     from acc_gym.suites import get_suite, list_suites
-    list_suites()                        # ['carfollowing-v1', 'malicious-v1', 'ncap-v1', 'singlelane-v1']
-    s = get_suite("singlelane-v1")
+    list_suites()                        # ['carfollowing-v1', 'malicious-v2', 'ncap-v1', 'singlelane-v2']
+    s = get_suite("singlelane-v2")
     s.episodes("dev")                    # the fixed list (about one hour of paper 004's traffic)
     s.scenario(1234, "test")             # the unbounded stream, a pure function of (index, split)
     s.hash("test")                       # what a leaderboard records to say what it ran
@@ -13,11 +13,11 @@ suite              what                                            episodes per 
 =================  ==============================================  ====================  ==================
 carfollowing-v1    paper 003's test at 60 / 90 / 120 km/h,          15 (5 lead drivers    CarFollowing-v0
                    each seed another human-like lead                 per speed)
-singlelane-v1      paper 004's 22 configurations by occurrence      ~1 simulated hour     SingleLane-v0
+singlelane-v2      paper 004's 22 configurations by occurrence      ~1 simulated hour     SingleLane-v0
                    rate, typical human-like MPC drivers              (~275 scenarios)
 ncap-v1            the 24 CCRs / CCRm / CCRb tests with test-track  48 (each test twice)  NCAP-v0
                    deviations of speed and distance
-malicious-v1       malicious MPC drivers in cut-in and braking      36 (4 per config.)    SingleLane-v0
+malicious-v2       malicious MPC drivers in cut-in and braking      36 (4 per config.)    SingleLane-v0
                    configurations, plus the hard CCRb tests
 =================  ==============================================  ====================  ==================
 
@@ -45,6 +45,13 @@ on a machine where controllers can write the installation) is an error, not a si
 different benchmark. To make a new version, add a suite with a new name, run
 ``python -m acc_gym.suites.generate NAME`` (it writes the file atomically and prints the
 hash) and add that hash to :data:`PINNED`; a released entry never changes.
+
+**Retired: singlelane-v1 and malicious-v1** (acc-gym 0.5.0). Their episodes' content
+digests include the surrounding MPC drivers' sampled parameters, and driver model 3
+samples the distance weight differently (:mod:`acc_gym.drivers.population`), so their
+episodes no longer build to what v1 recorded. They were not re-pinned in place: the
+same (id, params, seed) list under new seeds is ``singlelane-v2`` / ``malicious-v2``.
+Results on v1 (acc-gym <= 0.4.0) are not comparable with results on v2.
 """
 
 from __future__ import annotations
@@ -67,9 +74,9 @@ FILE_FORMAT = "acc_gym.suite/1"
 # sha256 of each released suite's definition (all splits): the data files must hash to these
 PINNED = {
     "carfollowing-v1": "96e543fba1374302c1df0b3826134bcd504e7de67cc55bf5e0691058f750164c",
-    "malicious-v1": "9c494ace3599ed88ff7487a53d75937f96945092088001716a819a955afc323c",
+    "malicious-v2": "72912bb95897923444f1af6e5905de1d4789e8a9e05a0fe8a510e98320237e3b",
     "ncap-v1": "4c807fa8938850c3a408e05b6d2086de63d1fbeb262c1271af48867ec8346d89",
-    "singlelane-v1": "1d28000280111f810b6b5e5a4fceb68451c94932d37fc5a7dda4c4cf6bedffda",
+    "singlelane-v2": "52c5cfeb39b83adac3e15dfb9691dd36a80e08f2cc726d4af04a61e9bdc123e5",
 }
 
 
@@ -78,12 +85,12 @@ def _templates() -> dict[str, Suite]:
     return {s.name: s for s in (
         Suite("carfollowing-v1", 1, "carfollowing", "acc_gym/CarFollowing-v0", generators.carfollowing, count=15,
               description="paper 003's car-following test at 60, 90 and 120 km/h, five lead drivers each"),
-        Suite("malicious-v1", 1, "malicious", "acc_gym/SingleLane-v0", generators.malicious, count=36,
+        Suite("malicious-v2", 2, "malicious", "acc_gym/SingleLane-v0", generators.malicious, count=36,
               description="malicious MPC drivers cutting in and braking hard, and the 6 m/s^2 CCRb tests"),
         Suite("ncap-v1", 1, "ncap", "acc_gym/NCAP-v0", generators.ncap, count=48,
               description="the Euro NCAP-style CCRs / CCRm / CCRb catalogue, each test twice with test-track "
                           "deviations"),
-        Suite("singlelane-v1", 1, "singlelane", "acc_gym/SingleLane-v0", generators.singlelane, hours=1.0,
+        Suite("singlelane-v2", 2, "singlelane", "acc_gym/SingleLane-v0", generators.singlelane, hours=1.0,
               description="one hour of paper 004's single-lane traffic, configurations by occurrence rate"),
     )}
 

@@ -15,7 +15,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-sb3 = pytest.importorskip("stable_baselines3")
+sb3 = pytest.importorskip("stable_baselines3", reason="stable-baselines3 is not installed (pip install '.[rl]' or '.[test]')")
 
 from acc_gym.cli import main  # noqa: E402
 from acc_gym.evaluation.runner import load_controller  # noqa: E402

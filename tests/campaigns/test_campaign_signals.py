@@ -13,7 +13,7 @@ from acc_gym._process import descendants
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and prctl (Linux)")
 
 COMMAND = [sys.executable, "-c", "import sys; from acc_gym.cli import main; sys.exit(main(sys.argv[1:]))",
-           "campaign", "--suite", "singlelane-v1", "--hours", "3", "--controller", "acc", "--workers", "2"]
+           "campaign", "--suite", "singlelane-v2", "--hours", "3", "--controller", "acc", "--workers", "2"]
 
 
 def start(tmp_path):

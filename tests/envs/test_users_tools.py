@@ -68,7 +68,7 @@ def test_sb3_subprocess_workers_find_the_ids_when_acc_gym_is_imported_inside_mai
     make_vec_env -- under both start methods that do not inherit the parent's registry; one
     worker each to keep it cheap. The qualified id's workers also run under a time limit:
     the truncating step's info, pickled back from the worker, has the score."""
-    pytest.importorskip("stable_baselines3")
+    pytest.importorskip("stable_baselines3", reason="stable-baselines3 is not installed (pip install '.[rl]' or '.[test]')")
     script = tmp_path / "train.py"
     script.write_text(textwrap.dedent(f"""
         import numpy as np
@@ -114,7 +114,7 @@ def test_qualified_ids_are_taken_wherever_an_id_is():
     assert resolve_env_id("acc_gym:" + ENV) == ENV and resolve_env_id(ENV) == ENV
     assert resolve_env_id("CartPole-v1") == "CartPole-v1"  # other registered ids are ids too
     assert evaluate("acc", "acc_gym:" + ENV, episodes=1, seed=3) == evaluate("acc", ENV, episodes=1, seed=3)
-    pytest.importorskip("stable_baselines3")
+    pytest.importorskip("stable_baselines3", reason="stable-baselines3 is not installed (pip install '.[rl]' or '.[test]')")
     venv = acc_gym.make_vec_env("acc_gym:" + ENV, n_envs=1, seed=0)
     assert venv.reset().shape == (1, 7)
     venv.close()
@@ -157,7 +157,7 @@ def test_the_cli_names_an_unknown_env_instead_of_a_traceback(capsys, tmp_path):
 
 
 def test_train_takes_the_qualified_id(tmp_path, capsys):
-    pytest.importorskip("stable_baselines3")
+    pytest.importorskip("stable_baselines3", reason="stable-baselines3 is not installed (pip install '.[rl]' or '.[test]')")
     from acc_gym.cli import main
 
     out = tmp_path / "run"
@@ -189,7 +189,7 @@ def test_max_episode_steps_under_sb3s_dummy_vec_env_scores_the_truncating_step()
     """gym.make(id, max_episode_steps=50) in SB3's DummyVecEnv (which resets in the same
     step): the truncating step's info -- the one with terminal_observation -- has the score
     of the 50 steps driven; no step before it has one, nor the next episode's first."""
-    pytest.importorskip("stable_baselines3")
+    pytest.importorskip("stable_baselines3", reason="stable-baselines3 is not installed (pip install '.[rl]' or '.[test]')")
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv
 
