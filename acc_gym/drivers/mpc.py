@@ -738,13 +738,12 @@ class MPCDriver:
         N = self.horizon.n_steps
         b, jerk = -self._P[i, K.A_MIN], self._P[i, K.JERK]
         tol = self.settings.brake_slack_tol + b ** 3 / (24.0 * jerk * jerk)
-        z = np.append(u, 0.0)
-        values = np.concatenate([z, self.horizon.constraint_matrix(self._beta[i]) @ z])
-        keep = np.ones(values.size, dtype=bool)
-        keep[5 * N:] = False  # the 2 K_TERM terminal rows (layout in acc_gym.drivers.qp)
-        keep[N] = False  # the slack itself
-        lo, hi = self._lower[i], self._upper[i]
-        if np.any(values[keep] < lo[keep] - tol) or np.any(values[keep] > hi[keep] + tol):
+        z = np.append(u, 0.0)  # no slack: its own bound [0, inf) holds
+        # (z, every general row but the 2 K_TERM terminal chords): the first 5N bounds (layout in
+        # acc_gym.drivers.qp)
+        values = np.concatenate([z, self.horizon.general_rows @ z])
+        lo, hi = self._lower[i, :5 * N], self._upper[i, :5 * N]
+        if np.any(values < lo - tol) or np.any(values > hi + tol):
             return False
         tv, tp = self.horizon.matrices
         v, gap, v_lead, stop_gap = (float(arrays[j][i]) for j in (0, 2, 3, 5))

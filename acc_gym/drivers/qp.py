@@ -101,6 +101,12 @@ class Horizon:
     def matrices(self) -> tuple[np.ndarray, np.ndarray]:
         return _horizon_matrices(self)
 
+    @property
+    def general_rows(self) -> np.ndarray:
+        """The general rows but the terminal chords (gap N, speed 2N, rate N-1), ``(4N-1, N+1)``,
+        columns ``(u, s)``: the same for every driver (read-only, cached)."""
+        return _constraint_matrix(self)
+
     def constraint_matrix(self, beta: np.ndarray) -> np.ndarray:
         """General rows ``G`` ``(n_rows, N+1)``, columns ``(u, s)``, for chord slopes ``beta`` ``(K_TERM,)``."""
         n = self.n_steps
