@@ -76,7 +76,9 @@ def test_braking_onset_by_speed_band(report):
                               ("braking_onset_a_req_q75", 3)):
                 (r,) = rows(report, stat, kind, f"band {band} ")
                 assert r["paper"] == pytest.approx(TABLE_A3_BRAKING_START[b, col])
-                assert r["tolerance"] == (0.2 if stat.endswith("median") else None)
+                # Table A3 is the whole population's: toleranced for the naturalistic drivers; the
+                # typical sub-population's medians are printed for context
+                assert r["tolerance"] == (0.2 if stat.endswith("median") and kind == "naturalistic" else None)
 
 
 def test_fig7_means_and_spreads(report):
