@@ -21,7 +21,9 @@ speed is its desired speed and its initial speed):
    enter EMERGENCY in the approach (paper: 0), and the Table 4 presets #23, #57, #61, #13
    approaching from 5, 10, .., 35 m/s: at how many of the 7 speeds each enters
    EMERGENCY, brakes harder than its own ``a_min``, or exceeds its jerk bound while
-   moving (paper: 0; the failing speeds are listed in ``detail``).
+   moving (paper: 0; the failing speeds are listed in ``detail``); and
+   ``exceeds_own_limits_in_benign_approach``: sampled drivers that brake harder than
+   their ``a_min`` or exceed their jerk bound while moving in the approach (paper: 0).
 4. ``braking_onset_a_req``: the required deceleration (Eq. 10, the driver's own
    ``a_req``) at the first BRAKE/EMERGENCY step, binned by the speed at that step into
    <10, 10-20, 20-30, 30-40 m/s: median (tolerance 0.2 m/s^2 for the naturalistic
@@ -219,6 +221,13 @@ def population_rows(kind: str, n: int, seed: int) -> list[dict]:
         ever = np.any(tr.mode[:, :, 1] == EMERGENCY, axis=0)
         rows.append(row("emergency_in_benign_approach", "drivers ever in EMERGENCY", kind, int(ever.sum()), 0, n,
                         scen, 0))
+        moving = tr.v[:-1, :, 1] >= STANDSTILL
+        a_lowest = np.min(np.where(moving, tr.a[1:, :, 1], np.inf), axis=0)
+        below = a_lowest < np.asarray(params.a_min) - 1e-6
+        jerky = max_jerk_moving(tr) > np.asarray(params.jerk_max) + 1e-6
+        rows.append(row("exceeds_own_limits_in_benign_approach", "drivers braking below a_min or above jerk_max "
+                        "while moving", kind, int(np.sum(below | jerky)), 0, n, scen, 0,
+                        f"{int(below.sum())} below a_min, {int(jerky.sum())} above jerk_max"))
     if kind in ("typical", "naturalistic"):
         found, k = onset(tr, (BRAKE, EMERGENCY))
         a_req = at_rows(tr.a_req, k, found)

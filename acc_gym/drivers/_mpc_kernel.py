@@ -42,7 +42,7 @@ EMERGENCY_MARGIN = 1.25  # emergency plans may brake 25 % harder than kinematica
 C_ALPHA = N_DRIVER_COLS + 10  # after the vehicle's 10 columns: terminal chords (alpha, then beta)
 C_BETA = C_ALPHA + K_TERM
 # Settings vector
-S_DT, S_ZOH, S_HYST, S_CREEP, S_PULL, S_FEAS, S_LEADACC, S_SLACK_LIN, S_WARM, S_COAST_FADE, S_SHORT, S_STOP = range(12)
+S_DT, S_ZOH, S_HYST, S_CREEP, S_PULL, S_FEAS, S_LEADACC, S_SLACK_LIN, S_WARM, S_COAST_FADE, S_SHORT, S_STOP, S_BRAKE_TOL = range(13)
 # Work matrix columns (outputs)
 W_U0, W_TARGET, W_AREQ, W_PATH, W_TH0, W_TH1, W_LOWER0, W_UPPER0, W_DR, W_MODE_PRE, W_VIOL, W_SLACK, W_ITER, W_ANEED, \
     W_FLOOR0 = range(15)
@@ -57,6 +57,47 @@ def vehicle_limits(P, i, v):
     a_lo = _accel_lower(v, P[i, c], P[i, c + 1], P[i, c + 2], P[i, c + 3], P[i, c + 4], P[i, c + 5],
                         P[i, c + 6], P[i, c + 9])
     return a_up, a_lo
+
+
+@numba.njit(cache=True, error_model="numpy")
+def release_distance(P, i):
+    """[m] How much further a stop at ``a_min`` rolls when the brake is released at the jerk
+    bound before the standstill than braking at ``a_min`` to it: ``b^3 / (24 jerk_max^2)``,
+    ``b = -a_min``."""
+    b = -P[i, A_MIN]
+    return b * b * b / (24.0 * P[i, JERK] * P[i, JERK])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def ramp_stop_distance(v, a0, step, a_brake, dt):
+    """[m] Distance to a standstill from speed ``v`` [m/s] applying ``a0`` [m/s^2] this step,
+    then moving the input by at most ``step`` [m/s^2] per step towards ``a_brake`` (< 0) and
+    holding it (exact zero-order hold; inf if it never stops within 1000 steps)."""
+    d = 0.0
+    a = a0
+    for _ in range(1000):
+        if v + a * dt <= 0.0:
+            return d + v * v / (-2.0 * a)
+        d += v * dt + 0.5 * a * dt * dt
+        v += a * dt
+        a += min(max(a_brake - a, -step), step)
+    return np.inf
+
+
+@numba.njit(cache=True, error_model="numpy")
+def need_decel(v, room, v_lead, a_l, stop_gap, extra):
+    """[m/s^2] The constant deceleration that stops clear of every real target (<= 0):
+    closing on a lead (``room`` = gap - x_min [m], inf without one), a braking lead
+    (``a_l`` < 0, predicted to stop: the gap plus its own stopping distance) and a stop
+    position ``stop_gap`` [m]; ``extra`` [m] is added to each room."""
+    a_need = 0.0
+    if room < np.inf and v > v_lead:
+        a_need = min(a_need, -((v - v_lead) ** 2) / (2.0 * max(room + extra, 1e-3)))
+    if room < np.inf and a_l < 0.0 and v > 0.0:
+        a_need = min(a_need, -v * v / (2.0 * max(room + extra + v_lead * v_lead / (-2.0 * a_l), 1e-3)))
+    if stop_gap < np.inf and v > 0.0:
+        a_need = min(a_need, -v * v / (2.0 * max(stop_gap + extra, 1e-3)))
+    return a_need
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -660,17 +701,15 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
     # like the QP's gap rows): if even braking at a_min at once cannot keep x_min, the
     # comfortable QP is infeasible, so go straight to EMERGENCY; an emergency ends only
     # when braking at 80 % of a_min would do (hysteresis), then the QP decides.
-    a_need = 0.0
-    if has_lead and v > v_lead[i]:
-        a_need = min(a_need, -((v - v_lead[i]) ** 2) / (2.0 * max(gap[i] - x_min, 1e-3)))
-    if has_lead and a_l < 0.0 and v > 0.0:
-        # a braking lead (predicted): stop within the gap plus the lead's own stopping distance
-        room = gap[i] - x_min + v_lead[i] * v_lead[i] / (-2.0 * a_l)
-        a_need = min(a_need, -v * v / (2.0 * max(room, 1e-3)))
-    if has_stop and v > 0.0:
-        a_need = min(a_need, -v * v / (2.0 * max(stop_gap[i], 1e-3)))
+    a_need = need_decel(v, gap[i] - x_min, v_lead[i], a_l, stop_gap[i], 0.0)
     W[i, W_ANEED] = a_need
-    if a_need < P[i, A_MIN] * (0.8 if m == EMERGENCY else 1.0):
+    # a braking driver is screened with a braking plan's tolerance (MPCSettings.brake_slack_tol
+    # plus the jerk-bounded release before a standstill; see MPCDriver._only_chords_short):
+    # the plans it accepts may end that far inside x_min, and carrying one out is no emergency
+    a_screen = a_need
+    if m == BRAKE:
+        a_screen = need_decel(v, gap[i] - x_min, v_lead[i], a_l, stop_gap[i], S[S_BRAKE_TOL] + release_distance(P, i))
+    if a_screen < P[i, A_MIN] * (0.8 if m == EMERGENCY else 1.0):
         m = EMERGENCY
     elif m == EMERGENCY:
         m = BRAKE
@@ -714,25 +753,48 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
     # --- the final stop: decelerating at walking pace towards a stopped target that coasting
     # would not leave it short of, the driver brakes to a standstill, no QP: within this step
     # if that needs no more than one jerk step of braking (so that the deceleration's drop to
-    # 0 at standstill is within the jerk bound too), else at that braking, reached at the
-    # jerk bound; a stopping distance of a few centimetres
+    # 0 at standstill is within the jerk bound too), else at that braking (at most a_min),
+    # reached at the jerk bound; a stopping distance of a few centimetres
     final = (m == BRAKE or m == SAIL) and 0.0 < v < S[S_STOP] and v_t <= S[S_PULL] and not short
     if final:
         step = P[i, JERK] * dt
-        upper0 = min(upper0, min(max(max(-v / dt, -step), up - step), up + step))
+        upper0 = min(upper0, min(max(max(-v / dt, max(-step, P[i, A_MIN])), up - step), up + step))
     # --- stopping inside this step (or standing) under the mode's least braking: no QP
     if final or v + dt * upper0 <= 0.0:
-        # ... unless that least braking would roll past x_min: then the exact stop
-        if v > 0.0 and v * v > -2.0 * upper0 * room:
-            a_lo = vehicle_limits(P, i, v)[1]
-            upper0 = max(-v * v / (2.0 * max(room, 1e-9)), a_lo)
+        # ... unless that least braking would roll past x_min: then the exact stop, if the
+        # driver's own limits reach it (a_min, and one jerk step from its current braking).
+        # If they do not, and braking at those limits stops within a braking plan's tolerance
+        # of x_min (MPCSettings.brake_slack_tol plus the jerk-bounded release before the
+        # standstill, as accepted in MPCDriver._only_chords_short), it brakes at them and
+        # stops a few centimetres inside x_min rather than jolting at the vehicle's limit
+        # (Table 4's #57 from 35 m/s, driver model 3: -8.6 m/s^2 at 0.29 m/s); else the
+        # exact stop at whatever the vehicle can do.
+        # A final stop still ramping (the throttle easing off, or the brake being released
+        # towards its final braking at the jerk bound) is checked along that ramp, not at this
+        # step's input held: if the ramp stops short of x_min it goes on (no jolt).
+        if v > 0.0 and v * v > -2.0 * upper0 * room and not (
+                final and ramp_stop_distance(v, upper0, P[i, JERK] * dt, max(-P[i, JERK] * dt, P[i, A_MIN]), dt)
+                <= room):
+            a_exact = -v * v / (2.0 * max(room, 1e-9))
+            a_own = min(upper0, max(P[i, A_MIN], up - P[i, JERK] * dt))
+            if (m != EMERGENCY and a_exact < a_own < 0.0
+                    and v * v / (-2.0 * a_own) - room <= S[S_BRAKE_TOL] + release_distance(P, i)):
+                upper0 = a_own
+            else:
+                upper0 = max(a_exact, vehicle_limits(P, i, v)[1])
             m = BRAKE
         W[i, W_U0] = upper0
         W[i, W_PATH] = HOLD
         W[i, W_VIOL] = 0.0
         # standing still, or stopping inside this step: the brake holds the car (no car comes to
-        # a standstill on engine drag at a chosen point), unless in an emergency
-        mode[i] = EMERGENCY if m == EMERGENCY else BRAKE
+        # a standstill on engine drag at a chosen point), unless in an emergency; a final stop's
+        # ramp that does not stop in this step is labelled by its input (decel_label)
+        if m == EMERGENCY:
+            mode[i] = EMERGENCY
+        elif v + dt * upper0 > 0.0:
+            mode[i] = decel_label(upper0, coast_decel(P, S, i, v), 1e-9)
+        else:
+            mode[i] = BRAKE
         for k in range(n):
             plan[i, k] = 0.0
         plan[i, 0] = upper0

@@ -66,6 +66,12 @@ Modes (paper Figure 9)
       standstill at its jerk bound, and every step that ends in a standstill is BRAKE:
       the brake holds the car. So every stop behind a stopped vehicle ends braking, within
       ``stop_short_margin`` of ``x_min`` (tests/drivers/test_modes.py).
+    * At its own limits: a braking driver's plan that keeps every row but the conservative
+      terminal chords, and the exact terminal condition, within ``brake_slack_tol`` plus
+      the jerk-bounded release before the standstill (``b^3 / (24 jerk_max^2)``) is
+      accepted; the EMERGENCY screen of a braking driver and its final stop use the same
+      tolerance, so such a stop ends at most that far inside ``x_min``, easing off at the
+      jerk bound (tests/drivers/test_own_limits.py).
     * Escalation: if the QP needs slack (the gap or speed constraint cannot hold within
       the mode's bounds), an ACCELERATE driver is re-solved decelerating, and a
       decelerating one in ``EMERGENCY``; an emergency ends on the first step the
@@ -109,7 +115,17 @@ from acc_gym.vehicle import VehicleParams, accel_lower
 # own limits instead of escalating; rolling on at creep speed towards a stopped target does
 # not slow down; a decelerating mode's input above coasting is labelled ACCELERATE; sampled
 # drivers' distance weight q1 = q1n (20/v)^4, q1n log-uniform in [0.04, 2.8] (population.py).
-MODEL_VERSION = 3
+# 4 (acc-gym 0.6.0): a braking driver is screened for EMERGENCY, and ends its stop, with the
+# tolerance its accepted braking plans have (brake_slack_tol plus the jerk-bounded release):
+# carrying out such a plan that ends a few centimetres inside x_min is neither an emergency
+# nor a jolt at the vehicle's braking limit (Table 4's #57 from 35 m/s braked at -8.6 m/s^2
+# for one step at 0.29 m/s); it eases off at its jerk bound. The final stop at walking pace
+# brakes at most at a_min, and one still easing off the throttle follows its jerk-bounded
+# ramp when that stops short of x_min (it jumped to the exact stop). The QPs are condensed
+# with the weights divided by max(1, q1) (same minimiser), so the slack's exact penalty
+# stays above the multipliers of a slow driver's speed-scaled q1 (which took slack 300 m
+# before a stopped car and braked at the vehicle's limit). Populations are unchanged.
+MODEL_VERSION = 4
 
 
 class Mode(IntEnum):
@@ -367,6 +383,16 @@ class MPCSettings:
     def horizon_structure(self) -> Horizon:
         return Horizon(self.horizon, self.dt, self.discretisation)
 
+    def stop_tolerance(self, params: MPCDriverParams) -> np.ndarray:
+        """[m] How far inside ``x_min`` a driver braking at its own limits may end a stop
+        (per driver): ``brake_slack_tol`` plus the jerk-bounded release before the standstill,
+        ``b^3 / (24 jerk_max^2)`` with ``b = -a_min``. A braking plan within it is accepted
+        (``MPCDriver._only_chords_short``), a braking driver is screened for EMERGENCY with
+        it, and its final stop uses it (driver model 4): at its own limits such a stop ends
+        a few centimetres inside ``x_min`` rather than with a jolt at the vehicle's limit."""
+        b, jerk = -np.asarray(params.a_min, float), np.asarray(params.jerk_max, float)
+        return self.brake_slack_tol + b ** 3 / (24.0 * jerk * jerk)
+
 
 def make_backend_name_check(name: str) -> None:
     if name not in ("daqp", "proxsuite") and not name.startswith("qpsolvers:"):
@@ -413,13 +439,11 @@ class MPCDriver:
         self._S = np.array([s.dt, 1.0 if s.discretisation == "zoh" else 0.0, s.hysteresis, s.creep_speed,
                             s.pull_away_speed, s.feas_tol, 1.0 if s.use_lead_accel else 0.0, s.slack_linear,
                             1.0 if s.warm_active_set else 0.0, s.coast_fade_speed, s.stop_short_margin,
-                            s.stop_speed])
-        self._qp_follow = [condensed_qp(float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]),
-                                        self.horizon, s.slack_linear, s.slack_quadratic, float(p.r_jerk[i]))
-                           for i in range(n)]
-        self._qp_cruise = [condensed_qp(0.0, float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]),
-                                        self.horizon, s.slack_linear, s.slack_quadratic, float(p.r_jerk[i]))
-                           for i in range(n)]
+                            s.stop_speed, s.brake_slack_tol])
+        pairs = [self._condensed(float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]), float(p.r_jerk[i]))
+                 for i in range(n)]
+        self._qp_follow = [f for f, _ in pairs]
+        self._qp_cruise = [c for _, c in pairs]
         N = self.horizon.n_steps
         # kernel arrays (few, large: numba's dispatch cost grows with the argument count)
         # unconstrained laws: follow (theta = e_x, e_v, u_prev), cruise (e_v, u_prev)
@@ -538,10 +562,18 @@ class MPCDriver:
 
     def _condensed(self, q1: float, q2: float, r1: float, c_tg: float, r_jerk: float):
         """The follow and cruise QPs of one driver configuration, from
-        :func:`~acc_gym.drivers.qp.condensed_qp`'s cache when it repeats."""
+        :func:`~acc_gym.drivers.qp.condensed_qp`'s cache when it repeats.
+
+        Both are condensed with the weights divided by ``max(1, q1)`` (the same minimiser and
+        the same laws): the slack's exact penalty (``MPCSettings.slack_linear``) must stay above
+        every constraint multiplier, which grow with ``q1`` times the distance error. Unscaled,
+        a slow driver's speed-scaled ``q1`` (5,200 at 3 m/s) made the slack cheaper than the
+        speed bound 300 m before a stopped vehicle: its QP took slack and the driver braked at
+        the vehicle's limit in EMERGENCY (driver model 3)."""
         s = self.settings
-        qf = condensed_qp(q1, q2, r1, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk)
-        qc = condensed_qp(0.0, q2, r1, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk)
+        k = 1.0 / max(1.0, q1)
+        qf = condensed_qp(q1 * k, q2 * k, r1 * k, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk * k)
+        qc = condensed_qp(0.0, q2 * k, r1 * k, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk * k)
         if s.use_lead_accel:
             qf.gain_lead_sums  # noqa: B018  (made once, kept by the shared QP)
         return qf, qc
@@ -737,7 +769,7 @@ class MPCDriver:
         this release distance is added to the tolerance. Neither is an emergency."""
         N = self.horizon.n_steps
         b, jerk = -self._P[i, K.A_MIN], self._P[i, K.JERK]
-        tol = self.settings.brake_slack_tol + b ** 3 / (24.0 * jerk * jerk)
+        tol = self.settings.brake_slack_tol + K.release_distance(self._P, i)
         z = np.append(u, 0.0)  # no slack: its own bound [0, inf) holds
         # (z, every general row but the 2 K_TERM terminal chords): the first 5N bounds (layout in
         # acc_gym.drivers.qp)
