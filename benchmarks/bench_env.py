@@ -1,29 +1,49 @@
-"""Speed of the environments: single-env and vector-env steps per second.
+"""Speed of the environments as users make them: single-env and vector-env steps per second.
 
-Both run paper 004's single-lane generator restricted to its 15 three-vehicle
-configurations, so every scene has two human-like MPC drivers (POV, POV2), with random
-actions and episodes ending and restarting as they come (resets included in the time):
+Each case is an id made with ``gymnasium.make`` (wrappers included: order enforcing,
+passive checker) or ``gymnasium.make_vec`` (the native vector env, ``--num-envs`` = 256),
+with its default settings unless named, random actions in [-0.3, 0.3] and episodes ending
+and restarting as they come (resets included in the time):
 
-* ``env_steps_per_s``: one ``gymnasium.make("acc_gym/SingleLane-v0")`` environment,
-  wrappers included (order enforcing, passive checker);
-* ``vector_env_steps_per_s``: the native vector env with ``--num-envs`` (256)
-  environments, counting every sub-environment step.
+========================  ======================================================
+key (``_steps_per_s``)    case
+========================  ======================================================
+``env``                   ``acc_gym/SingleLane-v0`` (all 22 configurations)
+``env_idm``               the same with ``drivers="idm"`` (IDM surrounding drivers)
+``env_carfollowing``      ``acc_gym/CarFollowing-v0``
+``env_ncap``              ``acc_gym/NCAP-v0``
+``vector_env``            ``acc_gym/SingleLane-v0``, 256 envs; likewise
+                          ``vector_env_idm``, ``vector_env_carfollowing``, ``vector_env_ncap``
+========================  ======================================================
 
-Each figure is the median of ``--repeats`` timed runs after a warm-up run (numba
-kernels compiled, caches warm); the spread is printed too. ``--workers K`` (default: the
-number of cores, if more than one) also times the vector env split over ``K`` worker
-processes (``make_vec(..., workers=K)``, :mod:`acc_gym.envs.shards`) as
-``vector_env_workers_steps_per_s``; ``--workers 1`` skips it. ``--parallel`` runs the
-vector env's MPC drivers on numba's thread pool (``MPCSettings(parallel=None)``; off by
-default, see :class:`acc_gym.drivers.mpc.MPCSettings`) and reports that figure as well.
-``--policy`` times the vector env as training runs it, with stable-baselines3's default
-PPO policy sampling every action from the observations (one torch thread), in process
-and over ``--workers`` processes (``vector_env_policy_steps_per_s``,
-``vector_env_workers_policy_steps_per_s``): each worker draws its next episodes while the
-policy runs (:meth:`acc_gym.envs.vector.ACCVectorEnv.prepare_resets`).
+Each figure is the median of ``--repeats`` timed runs after a warm-up (numba kernels
+compiled, caches warm), the runs alternating over the cases; the runs are printed too.
+``--workers K`` (default: the number of cores, if more than one) also times the default
+vector env split over ``K`` worker processes (``make_vec(..., workers=K)``,
+:mod:`acc_gym.envs.shards`) as ``vector_env_workers_steps_per_s``; ``--workers 1`` skips
+it. ``--parallel`` runs the vector env's MPC drivers on numba's thread pool
+(``MPCSettings(parallel=None)``, see :class:`acc_gym.drivers.mpc.MPCSettings`).
+``--policy`` times the default vector env as training runs it, with stable-baselines3's
+default PPO policy sampling every action (one torch thread), in process and over
+``--workers`` processes (``vector_env_policy_steps_per_s``,
+``vector_env_workers_policy_steps_per_s``). ``--cases`` picks cases (e.g. ``--cases env
+env_idm``).
+
+``--peers`` also times SUMO through libsumo on the same work as ``env_idm`` (a lead, two
+IDM followers, an ego whose speed is set and read every step, 0.2 s steps, one reload per
+200-step episode; :mod:`sumo_peer`), alternating with ``env_idm`` in the same run, as
+``sumo_steps_per_s``, and ``sumo_ratio`` = ``env_idm_steps_per_s / sumo_steps_per_s``
+(above 1: acc_gym is faster). It needs ``pip install ".[bench]"`` (libsumo).
+
+``--against DIR`` times another checkout of the package (e.g. the previous release:
+``git worktree add /tmp/prev v0.5.0``) in the same run: each repeat runs this script once
+for this checkout and once for ``DIR`` (``PYTHONPATH=DIR``), alternating, in subprocesses,
+and reports both medians and their ratio per key (``against``: ``{key: {"this": ..,
+"other": .., "ratio": ..}}``).
 
     python benchmarks/bench_env.py            # table
     python benchmarks/bench_env.py --json     # one JSON object
+    python benchmarks/bench_env.py --against /tmp/prev --repeats 5
 """
 
 from __future__ import annotations
@@ -31,6 +51,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import subprocess
+import sys
 import time
 
 import gymnasium as gym
@@ -38,13 +60,17 @@ import numpy as np
 
 import acc_gym  # noqa: F401  (registers the ids)
 from acc_gym.drivers.mpc import MPCSettings
-from acc_gym.envs.config import SINGLELANE
 
-THREE_VEHICLES = tuple(i for i in SINGLELANE if i.startswith("singlelane/3/"))
+CASES = {  # key prefix -> (id, settings)
+    "env": ("acc_gym/SingleLane-v0", {}),
+    "env_idm": ("acc_gym/SingleLane-v0", {"drivers": "idm"}),
+    "env_carfollowing": ("acc_gym/CarFollowing-v0", {}),
+    "env_ncap": ("acc_gym/NCAP-v0", {}),
+}
 
 
-def single_env_rate(steps: int, seed: int) -> float:
-    env = gym.make("acc_gym/SingleLane-v0", scenarios=THREE_VEHICLES)
+def single_env_rate(steps: int, seed: int, env_id: str = "acc_gym/SingleLane-v0", **settings) -> float:
+    env = gym.make(env_id, **settings)
     rng = np.random.default_rng(seed)
     env.reset(seed=seed)
     actions = rng.uniform(-0.3, 0.3, (steps, 1)).astype(np.float32)
@@ -53,13 +79,16 @@ def single_env_rate(steps: int, seed: int) -> float:
         _, _, term, trunc, _ = env.step(actions[k])
         if term or trunc:
             env.reset()
-    return steps / (time.perf_counter() - t0)
+    rate = steps / (time.perf_counter() - t0)
+    env.close()
+    return rate
 
 
-def vector_env_rate(num_envs: int, steps: int, seed: int, parallel: bool = False, workers: int = 1) -> float:
+def vector_env_rate(num_envs: int, steps: int, seed: int, parallel: bool = False, workers: int = 1,
+                    env_id: str = "acc_gym/SingleLane-v0", **settings) -> float:
     kwargs = {"mpc_settings": MPCSettings(parallel=None)} if parallel else {}
-    envs = gym.make_vec("acc_gym/SingleLane-v0", num_envs=num_envs, vectorization_mode="vector_entry_point",
-                        scenarios=THREE_VEHICLES, workers=workers, **kwargs)
+    envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", workers=workers,
+                        **kwargs, **settings)
     rng = np.random.default_rng(seed)
     envs.reset(seed=seed)
     actions = rng.uniform(-0.3, 0.3, (steps, num_envs, 1)).astype(np.float32)
@@ -79,7 +108,7 @@ def vector_policy_rate(num_envs: int, steps: int, seed: int, workers: int = 1) -
 
     torch.set_num_threads(1)
     envs = gym.make_vec("acc_gym/SingleLane-v0", num_envs=num_envs, vectorization_mode="vector_entry_point",
-                        scenarios=THREE_VEHICLES, workers=workers)
+                        workers=workers)
     torch.manual_seed(seed)
     policy = ActorCriticPolicy(envs.single_observation_space, envs.single_action_space, lambda _: 3e-4)
     obs, _ = envs.reset(seed=seed)
@@ -93,70 +122,118 @@ def vector_policy_rate(num_envs: int, steps: int, seed: int, workers: int = 1) -
     return rate
 
 
+def _median(out: dict, key: str, runs: list) -> None:
+    out[key] = float(np.median(runs))
+    out[key + "_runs"] = [round(x) for x in runs]
+
+
+def against(args, argv) -> dict:
+    """This checkout and ``args.against``, alternating, one subprocess each per repeat."""
+    base = [a for a in argv if a not in ("--json",)]
+    i = base.index("--against")
+    base = base[:i] + base[i + 2:]
+    base = [a for j, a in enumerate(base) if not (a == "--repeats" or (j > 0 and base[j - 1] == "--repeats"))]
+    cmd = [sys.executable, os.path.abspath(__file__), *base, "--repeats", "1", "--json"]
+    other_env = {**os.environ, "PYTHONPATH": os.path.abspath(args.against)}
+    runs = {"this": [], "other": []}
+    for _ in range(args.repeats):
+        for who, env in (("this", None), ("other", other_env)):
+            r = subprocess.run(cmd, capture_output=True, text=True, check=True, env=env,
+                               cwd=os.path.dirname(os.path.abspath(__file__)))
+            runs[who].append(json.loads(r.stdout.strip().splitlines()[-1]))
+    keys = [k for k in runs["this"][0] if k.endswith("_steps_per_s") and k in runs["other"][0]]
+    table = {}
+    for k in keys:
+        this = float(np.median([r[k] for r in runs["this"]]))
+        other = float(np.median([r[k] for r in runs["other"]]))
+        table[k] = {"this": this, "other": other, "ratio": this / other,
+                    "this_runs": [round(r[k]) for r in runs["this"]], "other_runs": [round(r[k]) for r in runs["other"]]}
+    return {"against": table, "against_dir": os.path.abspath(args.against), "repeats": args.repeats}
+
+
 def main(argv=None) -> dict:
+    argv = list(sys.argv[1:] if argv is None else argv)
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=3000, help="single-env steps per timed run")
     parser.add_argument("--vector-steps", type=int, default=200, help="vector-env steps per timed run")
     parser.add_argument("--num-envs", type=int, default=256)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES),
+                        help="which ids to time (each single and as a vector env)")
     parser.add_argument("--parallel", action="store_true", help="also time the vector env with threaded MPC drivers")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                         help="also time the vector env over this many worker processes (1: skip)")
     parser.add_argument("--policy", action="store_true",
                         help="also time the vector env (in-process and with --workers) with a PPO policy in the loop")
+    parser.add_argument("--peers", action="store_true",
+                        help="also time SUMO (libsumo) on the env_idm work, alternating, and report sumo_ratio")
+    parser.add_argument("--against", default=None, metavar="DIR",
+                        help="also time the checkout in DIR (PYTHONPATH=DIR), alternating, and report the ratios")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
-    single_env_rate(300, 99)  # warm-up: compile and cache
-    vector_env_rate(min(args.num_envs, 16), 20, 99)
-    singles = [single_env_rate(args.steps, r) for r in range(args.repeats)]
-    vectors = [vector_env_rate(args.num_envs, args.vector_steps, r) for r in range(args.repeats)]
-    out = {
-        "env_steps_per_s": float(np.median(singles)),
-        "env_steps_per_s_runs": [round(x) for x in singles],
-        "vector_env_steps_per_s": float(np.median(vectors)),
-        "vector_env_steps_per_s_runs": [round(x) for x in vectors],
-        "num_envs": args.num_envs,
-        "vector_over_single": float(np.median(vectors) / np.median(singles)),
-    }
+    if args.against:
+        out = against(args, argv)
+        if args.json:
+            print(json.dumps(out))
+        else:
+            print(f"this checkout against {out['against_dir']} ({args.repeats} alternating runs each, medians):")
+            for k, row in out["against"].items():
+                print(f"  {k:38s} {row['this']:>12,.0f} vs {row['other']:>12,.0f}  x{row['ratio']:.2f}")
+        return out
+    if args.peers:
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        import sumo_peer
+
+        if not sumo_peer.available():
+            parser.error("--peers needs libsumo: pip install '.[bench]'")
+        if "env_idm" not in args.cases:
+            args.cases.append("env_idm")
+        sumo_peer.rate(400)  # warm-up
+    for case in args.cases:  # warm-up: compile and cache
+        env_id, settings = CASES[case]
+        single_env_rate(200, 99, env_id, **settings)
+        vector_env_rate(min(args.num_envs, 16), 10, 99, env_id=env_id, **settings)
+    runs: dict[str, list] = {}
+    for r in range(args.repeats):  # alternating over the cases
+        for case in args.cases:
+            env_id, settings = CASES[case]
+            runs.setdefault(f"{case}_steps_per_s", []).append(single_env_rate(args.steps, r, env_id, **settings))
+            runs.setdefault(f"vector_{case}_steps_per_s", []).append(
+                vector_env_rate(args.num_envs, args.vector_steps, r, env_id=env_id, **settings))
+            if args.peers and case == "env_idm":
+                runs.setdefault("sumo_steps_per_s", []).append(sumo_peer.rate(args.steps))
+    out = {"num_envs": args.num_envs, "cases": {c: {"id": CASES[c][0], **CASES[c][1]} for c in args.cases}}
+    for key, values in runs.items():
+        _median(out, key, values)
+    if args.peers:
+        out["sumo_ratio"] = out["env_idm_steps_per_s"] / out["sumo_steps_per_s"]
+    if "env" in args.cases:
+        out["vector_over_single"] = out["vector_env_steps_per_s"] / out["env_steps_per_s"]
     if args.workers > 1:
-        work = [vector_env_rate(args.num_envs, args.vector_steps, r, workers=args.workers) for r in range(args.repeats)]
         out["workers"] = args.workers
-        out["vector_env_workers_steps_per_s"] = float(np.median(work))
-        out["vector_env_workers_steps_per_s_runs"] = [round(x) for x in work]
+        _median(out, "vector_env_workers_steps_per_s",
+                [vector_env_rate(args.num_envs, args.vector_steps, r, workers=args.workers) for r in range(args.repeats)])
     if args.policy:
         cases = [(1, "vector_env_policy_steps_per_s")]
         if args.workers > 1:
             cases.append((args.workers, "vector_env_workers_policy_steps_per_s"))
         for workers, key in cases:
-            runs = [vector_policy_rate(args.num_envs, args.vector_steps, r, workers) for r in range(args.repeats)]
-            out[key] = float(np.median(runs))
-            out[key + "_runs"] = [round(x) for x in runs]
+            _median(out, key, [vector_policy_rate(args.num_envs, args.vector_steps, r, workers)
+                               for r in range(args.repeats)])
     if args.parallel:
         vector_env_rate(min(args.num_envs, 16), 20, 99, parallel=True)
-        par = [vector_env_rate(args.num_envs, args.vector_steps, r, parallel=True) for r in range(args.repeats)]
-        out["vector_env_parallel_steps_per_s"] = float(np.median(par))
-        out["vector_env_parallel_steps_per_s_runs"] = [round(x) for x in par]
+        _median(out, "vector_env_parallel_steps_per_s",
+                [vector_env_rate(args.num_envs, args.vector_steps, r, parallel=True) for r in range(args.repeats)])
     if args.json:
         print(json.dumps(out))
     else:
-        print(f"single env (gymnasium.make, wrappers): {out['env_steps_per_s']:,.0f} steps/s "
-              f"(runs {out['env_steps_per_s_runs']}; target >= 10,000)")
-        print(f"vector env, {args.num_envs} envs:            {out['vector_env_steps_per_s']:,.0f} steps/s "
-              f"(runs {out['vector_env_steps_per_s_runs']}; target >= 100,000)")
-        if args.workers > 1:
-            print(f"vector env, {args.workers} worker processes:  {out['vector_env_workers_steps_per_s']:,.0f} steps/s "
-                  f"(runs {out['vector_env_workers_steps_per_s_runs']})")
-        if args.policy:
-            print(f"vector env + PPO policy in the loop:  {out['vector_env_policy_steps_per_s']:,.0f} steps/s "
-                  f"(runs {out['vector_env_policy_steps_per_s_runs']})")
-            if args.workers > 1:
-                print(f"  the same, {args.workers} worker processes: "
-                      f"{out['vector_env_workers_policy_steps_per_s']:,.0f} steps/s "
-                      f"(runs {out['vector_env_workers_policy_steps_per_s_runs']})")
-        if args.parallel:
-            print(f"vector env, threaded MPC drivers:    {out['vector_env_parallel_steps_per_s']:,.0f} steps/s "
-                  f"(runs {out['vector_env_parallel_steps_per_s_runs']})")
-        print(f"vector / single: {out['vector_over_single']:.1f}x")
+        for key, value in out.items():
+            if key.endswith("_steps_per_s"):
+                print(f"{key:42s} {value:>12,.0f} steps/s  (runs {out[key + '_runs']})")
+        if "sumo_ratio" in out:
+            print(f"acc_gym (IDM drivers) / SUMO (libsumo): {out['sumo_ratio']:.2f}x")
+        if "vector_over_single" in out:
+            print(f"vector / single (SingleLane-v0 default): {out['vector_over_single']:.1f}x")
     return out
 
 

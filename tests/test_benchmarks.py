@@ -6,6 +6,8 @@ import pathlib
 import subprocess
 import sys
 
+import pytest
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
@@ -25,10 +27,33 @@ def test_bench_env_json_keys():
                         "--steps", "100", "--vector-steps", "5", "--num-envs", "8"], capture_output=True, text=True,
                        check=True, cwd=ROOT)
     out = json.loads(r.stdout)
-    assert out["env_steps_per_s"] > 0 and out["vector_env_steps_per_s"] > 0 and out["num_envs"] == 8
-    assert len(out["env_steps_per_s_runs"]) == 1
+    for case in ("env", "env_idm", "env_carfollowing", "env_ncap"):  # the ids as users make them
+        for key in (f"{case}_steps_per_s", f"vector_{case}_steps_per_s"):
+            assert out[key] > 0 and len(out[key + "_runs"]) == 1
+    assert out["num_envs"] == 8 and out["cases"]["env_idm"] == {"id": "acc_gym/SingleLane-v0", "drivers": "idm"}
     if (os.cpu_count() or 1) > 1:  # by default the vector env over worker processes is timed too
         assert out["workers"] == os.cpu_count() and out["vector_env_workers_steps_per_s"] > 0
+
+
+def test_bench_env_peers_times_sumo_on_the_same_work():
+    pytest.importorskip("libsumo", reason="libsumo not installed (pip install '.[bench]'): no SUMO peer to time")
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_env.py"), "--json", "--repeats", "1",
+                        "--steps", "200", "--vector-steps", "3", "--num-envs", "4", "--workers", "1", "--cases", "env",
+                        "--peers"], capture_output=True, text=True, check=True, cwd=ROOT)
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert out["sumo_steps_per_s"] > 0 and out["env_idm_steps_per_s"] > 0  # env_idm is added for the ratio
+    assert out["sumo_ratio"] == pytest.approx(out["env_idm_steps_per_s"] / out["sumo_steps_per_s"])
+
+
+def test_sumo_peer_drives_the_documented_column():
+    """The peer is the same work: the ego follows POV at a finite gap, POV2 behind, 200-step episodes."""
+    pytest.importorskip("libsumo", reason="libsumo not installed (pip install '.[bench]'): no SUMO peer to check")
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import sumo_peer
+
+    v, gap, v_lead = sumo_peer.episode()
+    assert 15.0 < v < 35.0 and 0.0 < gap < 100.0 and v_lead > 0.0
+    assert sumo_peer.episode() == (v, gap, v_lead)  # a reload restarts the same episode
 
 
 def test_bench_campaign_json_keys():
@@ -50,15 +75,16 @@ def test_reproducibility_json_keys():
     assert out["verdicts_changed"] == 0 and out["max_speed_change"] < 1e-6
 
 
-def test_bench_ids_json_keys():
-    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_ids.py"), "--json", "--repeats", "1",
-                        "--steps", "50", "--vector-steps", "3", "--num-envs", "4"], capture_output=True, text=True,
-                       check=True, cwd=ROOT)
-    out = json.loads(r.stdout)
-    for env_id in ("acc_gym/SingleLane-v0", "acc_gym/CarFollowing-v0", "acc_gym/NCAP-v0"):
-        for key in ("single_steps_per_s", "vector_steps_per_s"):
-            e = out[f"{env_id} {key}"]
-            assert e["this"] > 0 and len(e["runs"]) == 1
+def test_bench_env_against_another_checkout():
+    """--against DIR alternates this checkout and DIR (here: this one again) and reports both medians."""
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_env.py"), "--json", "--repeats", "1",
+                        "--steps", "50", "--vector-steps", "2", "--num-envs", "4", "--workers", "1", "--cases",
+                        "env_carfollowing", "--against", str(ROOT)], capture_output=True, text=True, check=True, cwd=ROOT)
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert set(out["against"]) == {"env_carfollowing_steps_per_s", "vector_env_carfollowing_steps_per_s"}
+    for row in out["against"].values():
+        assert row["this"] > 0 and row["other"] > 0 and row["ratio"] == pytest.approx(row["this"] / row["other"])
+        assert len(row["this_runs"]) == len(row["other_runs"]) == 1
 
 
 def test_bench_leaderboard_json_keys():

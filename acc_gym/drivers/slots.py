@@ -10,8 +10,9 @@ one model call per kind and step:
   :meth:`~acc_gym.drivers.mpc.MPCDriver.set_params`, cached condensed QPs);
 * scripted or recorded speed profiles are resampled on the step grid once per episode
   and played back as one array;
-* baseline models (on request) get one small model per scene, so that a reaction-delay
-  buffer never mixes scenes.
+* baseline models (on request: IDM, Gipps, ACC, ...) are one law call per model and step
+  over all their rows (:class:`BaselineRows`): each row keeps its own parameters and its
+  own reaction-delay history, so a delay never mixes scenes.
 
 Each scene's driver depends only on that scene: a scene stepped among ``n`` gives the
 same numbers as the scene stepped alone (what makes a vector environment equal to
@@ -27,10 +28,12 @@ surrounding vehicle are one kernel call per step; :class:`SlotView` then present
 
 from __future__ import annotations
 
+from dataclasses import fields
+
 import numpy as np
 
 from acc_gym.drivers.base import Observation
-from acc_gym.drivers.baselines import MODELS
+from acc_gym.drivers.baselines import A_CEIL, A_FLOOR, MODELS
 from acc_gym.drivers.mpc import MPCDriver, MPCSettings
 
 
@@ -49,7 +52,7 @@ class SlotDrivers:
         self._mpc: MPCDriver | None = None
         self._profile = np.zeros((self.n, 1))  # speeds at steps 0, 1, ... (held after the end)
         self._clock = np.zeros(self.n, dtype=np.int64)
-        self._baseline: dict[int, object] = {}
+        self._baseline = BaselineRows(self.n, self.dt)
         self.info: dict[str, np.ndarray] = {}
         self.fallbacks = np.zeros(self.n, dtype=np.int64)  # solver fallbacks in the current episode
 
@@ -58,7 +61,7 @@ class SlotDrivers:
         """Give scene ``row`` the driver ``spec`` (a :class:`~acc_gym.scenarios.spec.DriverSpec`
         or None for an absent vehicle) and restart it."""
         row = int(row)
-        self._baseline.pop(row, None)
+        self._baseline.remove(row)
         self._clock[row] = 0
         self.fallbacks[row] = 0
         if spec is None:
@@ -80,8 +83,7 @@ class SlotDrivers:
             self._profile[row, speeds.size:] = speeds[-1]
             self.kind[row] = 2
         else:
-            cls = MODELS[spec.model]
-            self._baseline[row] = cls(spec.params_object(), n=1, dt=self.dt)
+            self._baseline.assign(row, MODELS[spec.model], spec.params_object())
             self.kind[row] = 3
 
     def prepare(self, spec) -> bool:
@@ -100,8 +102,7 @@ class SlotDrivers:
             rows = np.flatnonzero(self.kind == 1)
             if rows.size:
                 self._mpc.set_params(rows, self._mpc.params.take(rows))
-        for model in self._baseline.values():
-            model.reset()
+        # baseline rows restart with the clocks: a row's delay history is read by its clock
 
     def _all_mpc(self) -> bool:
         kinds = self.kind.tobytes()
@@ -159,11 +160,106 @@ class SlotDrivers:
             rows = np.flatnonzero(is_prof)
             k = np.minimum(self._clock[rows] + 1, self._profile.shape[1] - 1)
             out[rows] = (self._profile[rows, k] - obs.v[rows]) / self.dt
-        for row, model in self._baseline.items():
-            out[row] = model.act(obs.take([row]))[0]
+        if self._baseline.assigned:
+            self._baseline.act(obs, self._clock, out)
         self._clock += 1
         self.info = {"mode": mode}
         return out
+
+
+class BaselineRows:
+    """Baseline drivers (:data:`~acc_gym.drivers.baselines.MODELS`) of some of ``n`` rows,
+    stepped as one law call per model and parameter structure (e.g. every IDM row at once).
+
+    Each row keeps its own parameters and its own reaction delay (whole steps, as the
+    model's :class:`~acc_gym.drivers.base.DelayBuffer` would hold for that row alone): the
+    observations of the rows are kept in a ring of the last ``D + 1`` steps (``D`` the
+    longest delay), and a row ``k`` steps after its start sees step ``max(k - d, 0)``
+    (until ``d`` steps have passed, its first one), exactly what a model of that row alone
+    sees. The laws are element-wise over rows, so a row's output is the same number as
+    that row's own model gives (tests/drivers/test_slots.py). Parameters are validated when
+    a row is assigned (by the model's parameter class); the observation comes from the
+    simulation, so it is not re-validated each step (the output is made finite and clipped
+    to the models' range, as each model does)."""
+
+    _FIELDS = ("v", "a", "gap", "v_lead", "a_lead", "gap2", "v_lead2", "a_lead2", "stop_gap")
+
+    def __init__(self, n: int, dt: float):
+        self.n = int(n)
+        self.dt = float(dt)
+        self._cls: dict[int, type] = {}  # row -> model class
+        self._params: dict[int, object] = {}  # row -> its (validated) parameters
+        self._delay = np.zeros(self.n, dtype=np.int64)  # row -> delay [steps]
+        self._ring = np.zeros((len(self._FIELDS), self.n, 1))
+        # (model over its rows, the rows, whether any has a delay); None: rebuild at the next act
+        self._groups: list[tuple[object, np.ndarray, bool]] | None = []
+        self._delayed = False
+        self.rows = np.zeros(0, dtype=np.int64)
+
+    def assign(self, row: int, cls, params) -> None:
+        """Row ``row`` is driven by model ``cls`` with ``params`` (one vehicle's) from now."""
+        model = cls(params, n=1, dt=self.dt)  # validates, and gives this row's delay
+        self._cls[row], self._params[row] = cls, model.params
+        self._delay[row] = model._delay.delay_steps
+        if self._delay[row] + 1 > self._ring.shape[2]:
+            self._ring = np.concatenate(
+                [self._ring, np.zeros(self._ring.shape[:2] + (int(self._delay[row]) + 1 - self._ring.shape[2],))], axis=2)
+        self._groups = None
+
+    def remove(self, row: int) -> None:
+        if self._cls.pop(row, None) is not None:
+            self._params.pop(row)
+            self._delay[row] = 0
+            self._groups = None
+
+    @property
+    def assigned(self) -> bool:
+        """Whether any row has a baseline driver."""
+        return bool(self._cls)
+
+    def _build(self) -> list:
+        groups: dict[tuple, list[int]] = {}
+        for row in sorted(self._cls):
+            p = self._params[row]
+            # fields that are not per-row numbers (ACC's predecessors, Gipps's theta=None) split the groups
+            shape = tuple((f.name, getattr(p, f.name)) for f in fields(p)
+                          if getattr(p, f.name) is None or isinstance(getattr(p, f.name), (int, np.integer)))
+            groups.setdefault((self._cls[row], shape), []).append(row)
+        built = []
+        for (cls, shape), rows in groups.items():
+            fixed = dict(shape)
+            first = self._params[rows[0]]
+            values = {f.name: (fixed[f.name] if f.name in fixed else
+                               np.array([float(np.asarray(getattr(self._params[r], f.name)).ravel()[0]) for r in rows]))
+                      for f in fields(first)}
+            grp = np.array(rows, dtype=np.int64)
+            built.append((cls(type(first)(**values), n=len(rows), dt=self.dt), grp, bool(np.any(self._delay[grp] > 0))))
+        self.rows = np.array(sorted(self._cls), dtype=np.int64)
+        self._delayed = bool(np.any(self._delay[self.rows] > 0))
+        return built
+
+    def act(self, obs: Observation, clock: np.ndarray, out: np.ndarray) -> None:
+        """Write the baseline rows' desired accelerations into ``out``; ``clock[row]`` is the
+        number of steps the row's driver has taken."""
+        if self._groups is None:
+            self._groups = self._build()
+        size = self._ring.shape[2]
+        present = [i for i, name in enumerate(self._FIELDS) if getattr(obs, name) is not None]
+        if self._delayed:  # the ring is kept only while some row has a reaction delay
+            rows = self.rows
+            k = clock[rows] % size
+            for i in present:
+                self._ring[i, rows, k] = getattr(obs, self._FIELDS[i])[rows]
+        single = len(self._groups) == 1 and self.rows.size == self.n
+        for model, grp, delayed in self._groups:
+            now = obs if single else obs.take(grp)
+            seen = now
+            if delayed:
+                back = np.maximum(clock[grp] - self._delay[grp], 0) % size
+                seen = Observation(**{name: (self._ring[i, grp, back] if i in present else None)
+                                      for i, name in enumerate(self._FIELDS)})
+            a = np.asarray(model._law(now, seen), dtype=float)
+            out[grp] = np.clip(np.nan_to_num(a, nan=A_FLOOR, posinf=A_CEIL, neginf=A_FLOOR), A_FLOOR, A_CEIL)
 
 
 def _cruise_state(obs: Observation, idle: np.ndarray, v_desired: np.ndarray) -> Observation:

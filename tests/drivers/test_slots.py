@@ -82,6 +82,53 @@ def test_slot_rows_equal_their_drivers_run_alone():
     assert out[1] == alone[1].act(o.take([1]))[0]
 
 
+BASELINE_SPECS = [("idm", {"v_desired": 22.0, "tau": 0.4}), ("idm", {"v_desired": 30.0}),
+                  ("idm", {"time_gap": 1.1, "tau": 1.0}), ("gipps", {"tau": 0.6}),
+                  ("gipps", {"tau": 1.0, "theta": 0.3}), ("acc", {"k1": 0.3}),
+                  ("acc", {"k3": 1.0, "time_gap": 0.6, "predecessors": 2}), ("gm", {}), ("fuzzy", {}),
+                  ("newell", {}), ("tyler", {}), ("pipes", {})]
+
+
+def test_batched_baseline_rows_equal_each_row_run_alone_through_new_episodes():
+    """Baseline rows step as one law call per model (issue 18), each with its own parameters
+    and reaction delay: every row's output equals, bit for bit, the model of that row alone
+    (delays of 0 to 5 steps, ACC with one and two predecessors, Gipps with and without
+    theta), also after some rows start new episodes with other models mid-run."""
+    from acc_gym.drivers.baselines import MODELS
+
+    n = len(BASELINE_SPECS) + 1
+    slot = SlotDrivers(n, 0.2)
+    alone = {}
+
+    def give(row, model, params):
+        spec = DriverSpec(model, dict(params))
+        slot.assign(row, spec)
+        alone[row] = MODELS[model](spec.params_object(), n=1, dt=0.2)
+
+    for row, (model, params) in enumerate(BASELINE_SPECS):
+        give(row, model, params)
+    slot.assign(n - 1, None)
+    delays = {row: m._delay.delay_steps for row, m in alone.items()}
+    assert len(set(delays.values())) >= 3  # several different delays are mixed in one call
+
+    def obs2(k):
+        o = obs_for(n, k)
+        return Observation.build(v=o.v, a=o.a, gap=o.gap, v_lead=o.v_lead, a_lead=o.a_lead - 0.05 * (k % 3),
+                                 gap2=o.gap + 25.0, v_lead2=o.v_lead + 0.5, a_lead2=0.0)
+
+    for k in range(30):
+        if k == 12:  # new episodes in two rows: one changes model, one keeps it with other settings
+            give(0, "gipps", {"tau": 0.8})
+            give(5, "acc", {"k1": 0.1, "time_gap": 2.0})
+        o = obs2(k)
+        out = slot.act(o)
+        for row, model in alone.items():
+            assert out[row] == model.act(o.take([row]))[0], (k, row, BASELINE_SPECS[row])
+        assert out[n - 1] == 0.0
+    # the delay matters: a 5-step IDM row's output differs from an undelayed one's on the same rows
+    assert delays[2] == 5
+
+
 def test_a_large_batch_uses_the_parallel_kernel_and_gives_the_same_numbers():
     """Vector envs of >= 128 scenes step their drivers with the parallel kernel: each row must still
     equal the driver stepped alone (what makes a large vector env equal single envs)."""

@@ -146,6 +146,14 @@ def test_singlelane_mpc_drivers_equal_single_envs(kwargs):
     assert ended >= 5 and resets >= 5 and len(ids) >= 4
 
 
+def test_singlelane_batched_idm_drivers_equal_single_envs():
+    """Baseline surrounding drivers step as one law call over every scene and slot (issue
+    18); with scenes restarting at different times, each scene still gives the numbers it
+    gives alone (per-row reaction delays: tests/drivers/test_slots.py)."""
+    ended, resets, ids = run_lockstep("acc_gym/SingleLane-v0", 250, seed=5, drivers="idm")
+    assert ended >= 5 and resets >= 5 and len(ids) >= 4
+
+
 def test_stopandgo_mpc_drivers_equal_single_envs():
     run_lockstep("acc_gym/StopAndGo-v0", 150, seed=1)
 
