@@ -17,10 +17,12 @@ class _Train:
         p_tr.add_argument("--env", default="acc_gym/CarFollowing-v0",
                           help="an environment id, plain (acc_gym/CarFollowing-v0) or module-qualified "
                                "(acc_gym:acc_gym/CarFollowing-v0, the form subprocess workers need)")
-        p_tr.add_argument("--timesteps", type=int, default=100_000)
+        p_tr.add_argument("--timesteps", type=int, default=None,
+                          help="training steps (default: the tuned n_timesteps, else 100000)")
         p_tr.add_argument("--seed", type=int, default=0)
         p_tr.add_argument("--out", required=True, help="run directory (model, checkpoints, evaluations, manifest)")
-        p_tr.add_argument("--num-envs", type=int, default=8)
+        p_tr.add_argument("--num-envs", type=int, default=None,
+                          help="parallel environments (default: the tuned n_envs, else 8)")
         p_tr.add_argument("--eval-freq", type=int, default=None, help="timesteps between evaluations (default T/5)")
         p_tr.add_argument("--eval-episodes", type=int, default=5)
         p_tr.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -45,7 +47,10 @@ class _Train:
                           help='JSON scoring settings for the training environments only (reward, termination, score '
                                'bonus), e.g. \'{"lead_margin": 1.0}\'; evaluations use the default scoring')
         p_tr.add_argument("--algo-kwargs", default=None,
-                          help='JSON keyword arguments of the algorithm, e.g. \'{"policy_kwargs": {"log_std_init": -2}}\'')
+                          help='JSON keyword arguments of the algorithm, e.g. \'{"policy_kwargs": {"log_std_init": -2}}\' '
+                               '(without it, a plain run takes the tuned hyperparameters of the algorithm and env id '
+                               'from acc_gym_agents/rl/hyperparams/<algo>.yml where there are any; \'{}\': '
+                               'stable-baselines3\'s own defaults)')
 
     @staticmethod
     def run(args, parser) -> int:

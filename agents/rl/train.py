@@ -78,13 +78,37 @@ def mix_settings(mix: dict) -> dict:
     return {"scenarios": tuple(ids), "weights": tuple(weights)}
 
 
-def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 100_000, seed: int = 0,
-          out: str | os.PathLike = "runs/acc", num_envs: int = 8, eval_freq: int | None = None,
+DEFAULT_TIMESTEPS = 100_000  # without tuned hyperparameters (acc_gym_agents.rl.hyperparams)
+DEFAULT_NUM_ENVS = 8
+
+
+def tuned_defaults(algo: str, env_id: str, algo_kwargs: dict | None, residual: str | None) -> dict | None:
+    """The tuned rl-zoo3 hyperparameters (:func:`acc_gym_agents.rl.hyperparams.defaults`) that
+    :func:`train` uses for a plain run (no ``algo_kwargs``, no residual) of ``algo`` on
+    ``env_id``, or None."""
+    if algo_kwargs is not None or residual is not None:
+        return None
+    from acc_gym_agents.rl.hyperparams import defaults
+
+    return defaults(algo, env_id)
+
+
+def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | None = None, seed: int = 0,
+          out: str | os.PathLike = "runs/acc", num_envs: int | None = None, eval_freq: int | None = None,
           eval_episodes: int = 5, progress: bool = False, algo_kwargs: dict | None = None,
           residual: str | None = None, residual_scale: float = 0.3, shield: str | bool | None = None,
           residual_kwargs: dict | None = None, max_overspeed: float | None = None, score_bonus: float = 0.0,
           mix: dict | None = None, train_scoring: dict | None = None, **env_settings) -> Path:
     """Train ``algo`` (``ppo``, ``sac``, ``td3``) and write the run directory; returns its path.
+
+    Tuned defaults: a plain run (``algo_kwargs`` None and no ``residual``) of an algorithm and
+    environment id with an entry in ``acc_gym_agents/rl/hyperparams/<algo>.yml`` (rl-zoo3's
+    format, :mod:`acc_gym_agents.rl.hyperparams`) takes the algorithm's keyword arguments
+    from it, and ``timesteps`` / ``num_envs`` from its ``n_timesteps`` / ``n_envs`` when they
+    are None (given, they win). The manifest's ``hyperparams`` records the entry used (or
+    None); ``algo_kwargs={}`` asks for stable-baselines3's own defaults. Without an entry,
+    ``timesteps`` defaults to 100,000 and ``num_envs`` to 8. ``algo_kwargs`` may use rl-zoo3's
+    strings (``"learning_rate": "lin_3e-4"``, ``"policy_kwargs": "dict(log_std_init=-1)"``).
 
     ``residual``: a base controller name (:data:`acc_gym_agents.rl.residual.BASES`, its settings
     ``residual_kwargs``) to learn a correction of, scaled by ``residual_scale``; ``shield``:
@@ -111,15 +135,22 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
 
     if algo not in ALGOS:
         raise ValueError(f"unknown algorithm {algo!r}; use one of {list(ALGOS)}")
+    from acc_gym.envs.registration import resolve_env_id
+
+    env_id = resolve_env_id(env_id)  # plain or "acc_gym:"-qualified; ValueError naming an unknown id
+    tuned = tuned_defaults(algo, env_id, algo_kwargs, residual)
+    if tuned is not None:
+        algo_kwargs = tuned["entry"]  # rl-zoo3 form (JSON-able, recorded as it is); to_sb3 below
+    if timesteps is None:
+        timesteps = tuned["timesteps"] if tuned is not None else DEFAULT_TIMESTEPS
+    if num_envs is None:
+        num_envs = tuned["num_envs"] if tuned is not None else DEFAULT_NUM_ENVS
     for name, value in (("timesteps", timesteps), ("num_envs", num_envs), ("eval_episodes", eval_episodes)):
         if int(value) != value or value < 1:
             raise ValueError(f"{name} must be a positive integer, got {value!r}")
     from acc_gym_agents.rl.residual_law import check_shield
 
     shield = check_shield(shield)  # stored normalised: None, "proper-response" or "base"
-    from acc_gym.envs.registration import resolve_env_id
-
-    env_id = resolve_env_id(env_id)  # plain or "acc_gym:"-qualified; ValueError naming an unknown id
     spec = gym.spec(env_id)
     if mix:
         if "scenarios" in env_settings or "weights" in env_settings:
@@ -150,9 +181,14 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
         from acc_gym_agents.rl.residual import ScoreBonusVecEnv
 
         raw = ScoreBonusVecEnv(raw, score_bonus)
-    venv = VecNormalize(raw, norm_obs=True, norm_reward=False, clip_obs=10.0)
+    from acc_gym_agents.rl.hyperparams import normalize_settings
+
+    norm = normalize_settings((algo_kwargs or {}).get("normalize"), (algo_kwargs or {}).get("gamma", 0.99))
+    venv = VecNormalize(raw, norm_obs=True, clip_obs=10.0, **norm)
     cls = {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[algo]
-    model = cls("MlpPolicy", venv, seed=int(seed), device="cpu", verbose=0, **(algo_kwargs or {}))
+    from acc_gym_agents.rl.hyperparams import to_sb3
+
+    model = cls("MlpPolicy", venv, seed=int(seed), device="cpu", verbose=0, **to_sb3(algo_kwargs or {}))
     eval_freq = int(eval_freq) if eval_freq else max(int(timesteps) // 5, 1)
     evaluations: list[dict] = []
 
@@ -213,7 +249,10 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int = 1
                 "timesteps": int(model.num_timesteps), "seed": int(seed), "num_envs": int(num_envs),
                 "eval_seed": int(seed) + EVAL_SEED_OFFSET, "eval_episodes": int(eval_episodes),
                 "final_evaluation": final, "train_wall_time_s": wall, "versions": _versions(),
-                "algo_kwargs": algo_kwargs or {}, "residual": residual,
+                "algo_kwargs": algo_kwargs or {},
+                "hyperparams": None if tuned is None else {"file": Path(tuned["file"]).name, "env_id": env_id,
+                                                           "entry": tuned["entry"]},
+                "residual": residual,
                 "residual_scale": float(residual_scale) if residual is not None else None,
                 "shield": shield, "residual_kwargs": residual_kwargs or None, "max_overspeed": max_overspeed,
                 "score_bonus": float(score_bonus), "mix": dict(mix) if mix else None,

@@ -1,0 +1,158 @@
+"""Learning curves of the tuned plain PPO and SAC (acc_gym_agents/rl/hyperparams/*.yml).
+
+    python benchmarks/rl_curves.py --algos ppo sac --envs acc_gym/CarFollowing-v0 acc_gym/SingleLane-v0 \\
+        --seeds 0 1 2 --runs /tmp/rl_curves
+
+trains each (algorithm, env id, seed) with ``acc-gym train``'s tuned defaults (no
+``--algo-kwargs``: the rl-zoo3 files), one run at a time on one torch thread, and writes
+
+* ``--json`` (default ``agents/rl/curves.json``): per run the steps and, at each
+  checkpoint, the deterministic evaluation's mean score, share qualified and collisions
+  (``--eval-episodes`` episodes on the run's evaluation seed, ``seed + 1_000_003``, as
+  ``acc-gym train`` does), plus the last and best mean score, the wall time and -- with
+  ``--heldout SEED`` -- the final policy's deterministic evaluation on that seed
+  (``--heldout-episodes`` episodes per env id, e.g. ``CarFollowing-v0=100 SingleLane-v0=300``);
+* ``--png`` (default ``agents/rl/curves.png``): mean score and share qualified against steps,
+  one panel per env id, a line per run.
+
+``--plot-only`` redraws the PNG from the JSON. Runs whose directory already holds a
+finished ``manifest.json`` are read, not retrained (``--retrain`` forces it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_JSON = ROOT / "agents" / "rl" / "curves.json"
+DEFAULT_PNG = ROOT / "agents" / "rl" / "curves.png"
+
+
+def run_name(algo: str, env_id: str, seed: int) -> str:
+    return f"{algo}_{env_id.split('/')[-1]}_s{seed}"
+
+
+def curve(algo: str, env_id: str, seed: int, runs: Path, eval_freq: int | None, eval_episodes: int,
+          heldout: int | None, heldout_episodes: dict, retrain: bool = False, timesteps: int | None = None) -> dict:
+    """Train (or read) one run and return its curve entry."""
+    from acc_gym.evaluation.runner import evaluate
+    from acc_gym_agents.rl.hyperparams import defaults
+    from acc_gym_agents.rl.train import train
+
+    tuned = defaults(algo, env_id)
+    if tuned is None:
+        raise SystemExit(f"no tuned hyperparameters for {algo} on {env_id}")
+    out = runs / run_name(algo, env_id, seed)
+    steps = int(timesteps or tuned["timesteps"])
+    freq = int(eval_freq or max(steps // 10, 1))
+    if retrain or not (out / "manifest.json").is_file():
+        train(algo, env_id, timesteps=steps, seed=seed, out=out, eval_freq=freq, eval_episodes=eval_episodes)
+    manifest = json.loads((out / "manifest.json").read_text())
+    evals = json.loads((out / "evaluations.json").read_text())
+    scores = [e["mean_score"] for e in evals]
+    used = manifest.get("hyperparams")
+    if used is None:  # a search run with the same settings given as --algo-kwargs (the rest SB3's defaults)
+        used = {"adopted_search_run": out.name, "algo_kwargs": manifest["algo_kwargs"]}
+    entry = {"algo": algo, "env_id": env_id, "seed": seed, "hyperparams": used,
+             "eval_seed": manifest["eval_seed"], "eval_episodes": manifest["eval_episodes"],
+             "steps": [e["timesteps"] for e in evals], "mean_score": scores,
+             "share_qualified": [e["share_qualified"] for e in evals], "collisions": [e["collisions"] for e in evals],
+             "last_mean_score": scores[-1], "best_mean_score": max(scores),
+             "last_within_5_of_best": max(scores) - scores[-1] <= 5.0,
+             "train_wall_time_s": manifest["train_wall_time_s"]}
+    if heldout is not None:
+        n = int(heldout_episodes.get(env_id.split("/")[-1], heldout_episodes.get(env_id, 100)))
+        s = evaluate(str(out), env_id, episodes=n, seed=int(heldout))
+        entry["heldout"] = {"seed": int(heldout), "episodes": n, "mean_score": s["mean_score"],
+                            "share_qualified": s["share_qualified"], "collisions": s["collisions"]}
+    return entry
+
+
+def plot(data: dict, png: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    envs = sorted({c["env_id"] for c in data["curves"]})
+    fig, axes = plt.subplots(2, len(envs), figsize=(5.5 * len(envs), 6.5), squeeze=False, sharex="col")
+    colours = {"ppo": "tab:blue", "sac": "tab:red", "td3": "tab:green"}
+    styles = ["-", "--", ":", "-."]
+    for j, env_id in enumerate(envs):
+        for c in (c for c in data["curves"] if c["env_id"] == env_id):
+            seeds = sorted({d["seed"] for d in data["curves"] if d["env_id"] == env_id and d["algo"] == c["algo"]})
+            kw = dict(color=colours.get(c["algo"], "k"), ls=styles[seeds.index(c["seed"]) % len(styles)], marker=".",
+                      label=f"{c['algo']} seed {c['seed']}")
+            axes[0, j].plot(c["steps"], c["mean_score"], **kw)
+            axes[1, j].plot(c["steps"], [100 * q for q in c["share_qualified"]], **kw)
+        axes[0, j].set_title(env_id)
+        axes[0, j].set_ylabel("mean score (deterministic)")
+        axes[1, j].set_ylabel("qualified [%]")
+        axes[1, j].set_xlabel("training steps")
+        axes[1, j].set_xscale("log")
+        for ax in axes[:, j]:
+            ax.grid(alpha=0.3)
+        axes[0, j].legend(fontsize=7)
+    fig.tight_layout()
+    png.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png, dpi=80)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--algos", nargs="+", default=["ppo", "sac"])
+    ap.add_argument("--envs", nargs="+", default=["acc_gym/CarFollowing-v0", "acc_gym/SingleLane-v0"])
+    ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    ap.add_argument("--runs", default="rl_curves_runs", help="directory of the run directories")
+    ap.add_argument("--timesteps", type=int, default=None, help="default: the tuned n_timesteps")
+    ap.add_argument("--eval-freq", type=int, default=None, help="default: a tenth of the steps")
+    ap.add_argument("--eval-episodes", type=int, default=30)
+    ap.add_argument("--heldout", type=int, default=None, help="held-out evaluation seed of the final policies")
+    ap.add_argument("--heldout-episodes", nargs="+", default=["CarFollowing-v0=100", "SingleLane-v0=300"],
+                    metavar="ENV=N")
+    ap.add_argument("--json", default=str(DEFAULT_JSON))
+    ap.add_argument("--png", default=str(DEFAULT_PNG))
+    ap.add_argument("--plot-only", action="store_true")
+    ap.add_argument("--retrain", action="store_true")
+    ap.add_argument("--merge", action="store_true", help="keep the JSON's other runs (replace the same ones)")
+    args = ap.parse_args(argv)
+    if args.plot_only:
+        plot(json.loads(Path(args.json).read_text()), Path(args.png))
+        return 0
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    import torch
+
+    torch.set_num_threads(1)
+    held = {k: v for k, v in (h.split("=", 1) for h in args.heldout_episodes)}
+    data = {"curves": []}
+    if args.merge and Path(args.json).is_file():
+        data = json.loads(Path(args.json).read_text())
+    key = lambda c: (c["algo"], c["env_id"], c["seed"])  # noqa: E731
+    for algo in args.algos:
+        for env_id in args.envs:
+            for seed in args.seeds:
+                t0 = time.time()
+                c = curve(algo, env_id, seed, Path(args.runs), args.eval_freq, args.eval_episodes, args.heldout,
+                          held, args.retrain, args.timesteps)
+                data["curves"] = [d for d in data["curves"] if key(d) != key(c)] + [c]
+                print(f"{algo} {env_id} seed {seed}: last {c['last_mean_score']:.1f} best {c['best_mean_score']:.1f} "
+                      f"qualified {c['share_qualified'][-1]:.0%} ({time.time() - t0:.0f} s)"
+                      + (f"; held-out {c['heldout']}" if "heldout" in c else ""), file=sys.stderr)
+                Path(args.json).write_text(json.dumps(data, indent=1))
+    data["curves"].sort(key=key)
+    from acc_gym_agents.rl.train import _versions
+
+    data["versions"] = _versions()
+    Path(args.json).write_text(json.dumps(data, indent=1))
+    plot(data, Path(args.png))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
