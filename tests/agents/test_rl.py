@@ -53,8 +53,11 @@ def test_tiny_ppo_run_saves_reloads_and_is_scored_through_the_same_path(tmp_path
 @pytest.mark.slow
 @pytest.mark.parametrize("algo", ["sac", "td3"])
 def test_tiny_off_policy_runs(tmp_path, algo):
+    # learning_starts below the budget, so that gradient steps are taken (the tuned SAC entry
+    # starts learning after 2,000 steps; explicit algo_kwargs replace the tuned defaults)
     run = train(algo, "acc_gym/CarFollowing-v0", timesteps=300, seed=1, out=tmp_path / algo, num_envs=2,
-                eval_episodes=1)
+                eval_episodes=1, algo_kwargs={"learning_starts": 100})
+    assert json.loads((run / "manifest.json").read_text())["hyperparams"] is None
     s = evaluate(str(run), "acc_gym/CarFollowing-v0", episodes=1, seed=2)
     assert s["episodes"] == 1 and 0.0 <= s["mean_score"] <= 100.0
 
