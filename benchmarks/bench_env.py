@@ -127,13 +127,12 @@ def _median(out: dict, key: str, runs: list) -> None:
     out[key + "_runs"] = [round(x) for x in runs]
 
 
-def against(args, argv) -> dict:
+def against(args) -> dict:
     """This checkout and ``args.against``, alternating, one subprocess each per repeat."""
-    base = [a for a in argv if a not in ("--json",)]
-    i = base.index("--against")
-    base = base[:i] + base[i + 2:]
-    base = [a for j, a in enumerate(base) if not (a == "--repeats" or (j > 0 and base[j - 1] == "--repeats"))]
-    cmd = [sys.executable, os.path.abspath(__file__), *base, "--repeats", "1", "--json"]
+    cmd = [sys.executable, os.path.abspath(__file__), "--repeats", "1", "--json", "--steps", str(args.steps),
+           "--vector-steps", str(args.vector_steps), "--num-envs", str(args.num_envs), "--workers", str(args.workers),
+           "--cases", *args.cases, *(["--parallel"] if args.parallel else []), *(["--policy"] if args.policy else []),
+           *(["--peers"] if args.peers else [])]
     other_env = {**os.environ, "PYTHONPATH": os.path.abspath(args.against)}
     runs = {"this": [], "other": []}
     for _ in range(args.repeats):
@@ -152,7 +151,6 @@ def against(args, argv) -> dict:
 
 
 def main(argv=None) -> dict:
-    argv = list(sys.argv[1:] if argv is None else argv)
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=3000, help="single-env steps per timed run")
     parser.add_argument("--vector-steps", type=int, default=200, help="vector-env steps per timed run")
@@ -172,7 +170,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     if args.against:
-        out = against(args, argv)
+        out = against(args)
         if args.json:
             print(json.dumps(out))
         else:

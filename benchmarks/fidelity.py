@@ -183,6 +183,13 @@ def max_jerk_moving(tr) -> np.ndarray:
     return np.max(np.where(v[1:] >= STANDSTILL, j, 0.0), axis=0)
 
 
+def lowest_moving_accel(tr) -> np.ndarray:
+    """Per follower, the lowest applied acceleration a[k+1] of a step whose vehicle was moving
+    (v >= STANDSTILL) at its start [m/s^2]."""
+    moving = tr.v[:-1, :, 1] >= STANDSTILL
+    return np.min(np.where(moving, tr.a[1:, :, 1], np.inf), axis=0)
+
+
 def quartiles(x):
     if len(x) == 0:
         return (None, None, None)
@@ -221,9 +228,7 @@ def population_rows(kind: str, n: int, seed: int) -> list[dict]:
         ever = np.any(tr.mode[:, :, 1] == EMERGENCY, axis=0)
         rows.append(row("emergency_in_benign_approach", "drivers ever in EMERGENCY", kind, int(ever.sum()), 0, n,
                         scen, 0))
-        moving = tr.v[:-1, :, 1] >= STANDSTILL
-        a_lowest = np.min(np.where(moving, tr.a[1:, :, 1], np.inf), axis=0)
-        below = a_lowest < np.asarray(params.a_min) - 1e-6
+        below = lowest_moving_accel(tr) < np.asarray(params.a_min) - 1e-6
         jerky = max_jerk_moving(tr) > np.asarray(params.jerk_max) + 1e-6
         rows.append(row("exceeds_own_limits_in_benign_approach", "drivers braking below a_min or above jerk_max "
                         "while moving", kind, int(np.sum(below | jerky)), 0, n, scen, 0,
@@ -277,8 +282,7 @@ def preset_rows() -> list[dict]:
                         f"v0 = v_desired = {', '.join(f'{v:g}' for v in PRESET_SPEEDS)} m/s")
     scen += "; Table 4 presets (c_TG, x_min: MPCDriverParams defaults)"
     ever = np.any(tr.mode[:, :, 1] == EMERGENCY, axis=0)
-    moving = tr.v[:, :, 1] >= STANDSTILL  # the applied a[k+1] of a step whose vehicle was moving at its start
-    a_lowest = np.min(np.where(moving[:-1], tr.a[1:, :, 1], np.inf), axis=0)
+    a_lowest = lowest_moving_accel(tr)
     a_min = np.asarray(params.a_min)
     jerk = max_jerk_moving(tr)
     jerk_max = np.asarray(params.jerk_max)

@@ -706,8 +706,9 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
     # a braking driver is screened with a braking plan's tolerance (MPCSettings.brake_slack_tol
     # plus the jerk-bounded release before a standstill; see MPCDriver._only_chords_short):
     # the plans it accepts may end that far inside x_min, and carrying one out is no emergency
+    # (the extra room only makes the need milder: recomputed only when the plain need escalates)
     a_screen = a_need
-    if m == BRAKE:
+    if m == BRAKE and a_need < P[i, A_MIN]:
         a_screen = need_decel(v, gap[i] - x_min, v_lead[i], a_l, stop_gap[i], S[S_BRAKE_TOL] + release_distance(P, i))
     if a_screen < P[i, A_MIN] * (0.8 if m == EMERGENCY else 1.0):
         m = EMERGENCY
@@ -756,9 +757,10 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
     # 0 at standstill is within the jerk bound too), else at that braking (at most a_min),
     # reached at the jerk bound; a stopping distance of a few centimetres
     final = (m == BRAKE or m == SAIL) and 0.0 < v < S[S_STOP] and v_t <= S[S_PULL] and not short
+    step = P[i, JERK] * dt  # [m/s^2] one step's input change at the jerk bound
+    final_brake = max(-step, P[i, A_MIN])  # the final stop's braking
     if final:
-        step = P[i, JERK] * dt
-        upper0 = min(upper0, min(max(max(-v / dt, max(-step, P[i, A_MIN])), up - step), up + step))
+        upper0 = min(upper0, min(max(max(-v / dt, final_brake), up - step), up + step))
     # --- stopping inside this step (or standing) under the mode's least braking: no QP
     if final or v + dt * upper0 <= 0.0:
         # ... unless that least braking would roll past x_min: then the exact stop, if the
@@ -773,10 +775,9 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         # towards its final braking at the jerk bound) is checked along that ramp, not at this
         # step's input held: if the ramp stops short of x_min it goes on (no jolt).
         if v > 0.0 and v * v > -2.0 * upper0 * room and not (
-                final and ramp_stop_distance(v, upper0, P[i, JERK] * dt, max(-P[i, JERK] * dt, P[i, A_MIN]), dt)
-                <= room):
+                final and ramp_stop_distance(v, upper0, step, final_brake, dt) <= room):
             a_exact = -v * v / (2.0 * max(room, 1e-9))
-            a_own = min(upper0, max(P[i, A_MIN], up - P[i, JERK] * dt))
+            a_own = min(upper0, max(P[i, A_MIN], up - step))
             if (m != EMERGENCY and a_exact < a_own < 0.0
                     and v * v / (-2.0 * a_own) - room <= S[S_BRAKE_TOL] + release_distance(P, i)):
                 upper0 = a_own

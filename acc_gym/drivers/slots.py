@@ -182,7 +182,7 @@ class BaselineRows:
     simulation, so it is not re-validated each step (the output is made finite and clipped
     to the models' range, as each model does)."""
 
-    _FIELDS = ("v", "a", "gap", "v_lead", "a_lead", "gap2", "v_lead2", "a_lead2", "stop_gap")
+    _FIELDS = tuple(f.name for f in fields(Observation))
 
     def __init__(self, n: int, dt: float):
         self.n = int(n)
@@ -194,6 +194,7 @@ class BaselineRows:
         # (model over its rows, the rows, whether any has a delay); None: rebuild at the next act
         self._groups: list[tuple[object, np.ndarray, bool]] | None = []
         self._delayed = False
+        self._whole = False
         self.rows = np.zeros(0, dtype=np.int64)
 
     def assign(self, row: int, cls, params) -> None:
@@ -236,6 +237,7 @@ class BaselineRows:
             built.append((cls(type(first)(**values), n=len(rows), dt=self.dt), grp, bool(np.any(self._delay[grp] > 0))))
         self.rows = np.array(sorted(self._cls), dtype=np.int64)
         self._delayed = bool(np.any(self._delay[self.rows] > 0))
+        self._whole = len(built) == 1 and self.rows.size == self.n  # one group over every row: no take()
         return built
 
     def act(self, obs: Observation, clock: np.ndarray, out: np.ndarray) -> None:
@@ -250,9 +252,8 @@ class BaselineRows:
             k = clock[rows] % size
             for i in present:
                 self._ring[i, rows, k] = getattr(obs, self._FIELDS[i])[rows]
-        single = len(self._groups) == 1 and self.rows.size == self.n
         for model, grp, delayed in self._groups:
-            now = obs if single else obs.take(grp)
+            now = obs if self._whole else obs.take(grp)
             seen = now
             if delayed:
                 back = np.maximum(clock[grp] - self._delay[grp], 0) % size
