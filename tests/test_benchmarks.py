@@ -36,7 +36,7 @@ def test_bench_env_json_keys():
 
 
 def test_bench_env_peers_times_sumo_on_the_same_work():
-    pytest.importorskip("libsumo", reason="libsumo not installed (pip install '.[bench]'): no SUMO peer to time")
+    pytest.importorskip("libsumo", reason="libsumo is not installed (pip install '.[bench]' or '.[test]'): no SUMO peer to time")
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_env.py"), "--json", "--repeats", "1",
                         "--steps", "200", "--vector-steps", "3", "--num-envs", "4", "--workers", "1", "--cases", "env",
                         "--peers"], capture_output=True, text=True, check=True, cwd=ROOT)
@@ -47,7 +47,7 @@ def test_bench_env_peers_times_sumo_on_the_same_work():
 
 def test_sumo_peer_drives_the_documented_column():
     """The peer is the same work: the ego follows POV at a finite gap, POV2 behind, 200-step episodes."""
-    pytest.importorskip("libsumo", reason="libsumo not installed (pip install '.[bench]'): no SUMO peer to check")
+    pytest.importorskip("libsumo", reason="libsumo is not installed (pip install '.[bench]' or '.[test]'): no SUMO peer to check")
     sys.path.insert(0, str(ROOT / "benchmarks"))
     import sumo_peer
 
