@@ -24,12 +24,12 @@ def entries_and_releases(tr):
 
 # the lead's braking [m/s^2]: malicious drivers brake at 85-95 % of the tyre limit, so a lead
 # stopping at 6 m/s^2 is within their own limits (no EMERGENCY at all); 8 m/s^2 is not
-LEAD_BRAKE = {"typical": 6.0, "atypical": 6.0, "malicious": 8.0}
+LEAD_BRAKE = {"typical": 6.0, "atypical": 6.0, "malicious": 8.0, "naturalistic": 6.0}
 
 
-@pytest.mark.parametrize("kind", ["typical", "atypical", "malicious"])
+@pytest.mark.parametrize("kind", list(LEAD_BRAKE))
 def test_no_brake_release_on_entering_an_emergency(kind):
-    rng = np.random.default_rng([23, ["typical", "atypical", "malicious"].index(kind)])
+    rng = np.random.default_rng([23, list(LEAD_BRAKE).index(kind)])
     speeds = rng.uniform(5.0, 35.0, N)
     params = sample_drivers(rng, N, speeds, kind=kind)
     total_entries = 0
