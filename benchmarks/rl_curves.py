@@ -99,8 +99,9 @@ def plot(data: dict, png: Path) -> None:
             ax.grid(alpha=0.3)
         axes[0, j].legend(fontsize=7)
     fig.tight_layout()
-    png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png, dpi=80)
+    from acc_gym.plotting import save_figure
+
+    save_figure(fig, png, dpi=80)  # atomic, as every results file
     plt.close(fig)
 
 
@@ -128,6 +129,8 @@ def main(argv=None) -> int:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     import torch
 
+    from acc_gym._io import atomic_write
+
     torch.set_num_threads(1)
     held = {k: v for k, v in (h.split("=", 1) for h in args.heldout_episodes)}
     data = {"curves": []}
@@ -144,12 +147,12 @@ def main(argv=None) -> int:
                 print(f"{algo} {env_id} seed {seed}: last {c['last_mean_score']:.1f} best {c['best_mean_score']:.1f} "
                       f"qualified {c['share_qualified'][-1]:.0%} ({time.time() - t0:.0f} s)"
                       + (f"; held-out {c['heldout']}" if "heldout" in c else ""), file=sys.stderr)
-                Path(args.json).write_text(json.dumps(data, indent=1))
+                atomic_write(args.json, json.dumps(data, indent=1))  # a killed run keeps the finished curves
     data["curves"].sort(key=key)
     from acc_gym_agents.rl.train import _versions
 
     data["versions"] = _versions()
-    Path(args.json).write_text(json.dumps(data, indent=1))
+    atomic_write(args.json, json.dumps(data, indent=1))
     plot(data, Path(args.png))
     return 0
 
