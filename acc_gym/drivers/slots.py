@@ -131,7 +131,9 @@ class SlotDrivers:
         scene's driver is an MPC driver, the batch takes that cheaper path; otherwise
         :meth:`act` on the :class:`~acc_gym.drivers.base.Observation` of the rows."""
         if not self._all_mpc():
-            return self.act(Observation(*rows))
+            if self._mpc is None or self._baseline.assigned or not np.any(self.kind == 1):
+                return self.act(Observation(*rows))
+            return self._act_rows_mpc_and_idle(rows)
         mpc = self._mpc
         out = mpc.act_rows(rows)
         self.fallbacks[:] = mpc.stats_column("fallback")
@@ -139,6 +141,33 @@ class SlotDrivers:
         # assign(), which restarts its clock (the tick costs as much as the rest of this bookkeeping)
         self.info = {"mode": mpc.mode.copy()}
         return out
+
+    def _act_rows_mpc_and_idle(self, rows: np.ndarray) -> np.ndarray:
+        """:meth:`act` on observation rows when the rows hold MPC drivers, absent vehicles and
+        scripted profiles only (the single environment's 1- and 2-vehicle scenes): the MPC
+        batch takes its array path, with the other rows set to the cruise of
+        :meth:`_idle_rows_cruising` in a copy of the rows (the same numbers as :meth:`act`)."""
+        mpc = self._mpc
+        is_mpc = self.kind == 1
+        idle = ~is_mpc
+        cruise = rows.copy()
+        cruise[0, idle] = mpc.params.v_desired[idle]
+        for i, value in _CRUISE_ROWS:
+            cruise[i, idle] = value
+        out = np.where(is_mpc, mpc.act_rows(cruise), 0.0)
+        mode = np.where(is_mpc, mpc.mode, -1)
+        self.fallbacks[is_mpc] = mpc.stats_column("fallback")[is_mpc]
+        if self.kind.max() == 2:  # scripted profiles (no baseline rows on this path)
+            self._play_profiles(rows[0], out)
+        self._clock += 1
+        self.info = {"mode": mode}
+        return out
+
+    def _play_profiles(self, v: np.ndarray, out: np.ndarray) -> None:
+        """The profile rows' accelerations to their next speed sample (speeds ``v``) into ``out``."""
+        rows = np.flatnonzero(self.kind == 2)
+        k = np.minimum(self._clock[rows] + 1, self._profile.shape[1] - 1)
+        out[rows] = (self._profile[rows, k] - v[rows]) / self.dt
 
     def act(self, obs: Observation) -> np.ndarray:
         if self._all_mpc():  # the common case (every scene's slot has an MPC driver): no masks
@@ -155,11 +184,8 @@ class SlotDrivers:
             out[is_mpc] = a[is_mpc]
             mode[is_mpc] = self._mpc.mode[is_mpc]
             self.fallbacks[is_mpc] = self._mpc.stats_column("fallback")[is_mpc]
-        is_prof = self.kind == 2
-        if np.any(is_prof):
-            rows = np.flatnonzero(is_prof)
-            k = np.minimum(self._clock[rows] + 1, self._profile.shape[1] - 1)
-            out[rows] = (self._profile[rows, k] - obs.v[rows]) / self.dt
+        if np.any(self.kind == 2):
+            self._play_profiles(np.asarray(obs.v), out)
         if self._baseline.assigned:
             self._baseline.act(obs, self._clock, out)
         self._clock += 1
@@ -180,71 +206,82 @@ class BaselineRows:
     that row's own model gives (tests/drivers/test_slots.py). Parameters are validated when
     a row is assigned (by the model's parameter class); the observation comes from the
     simulation, so it is not re-validated each step (the output is made finite and clipped
-    to the models' range, as each model does)."""
+    to the models' range, as each model does).
+
+    Each group (a model class and the row-invariant fields that split it: ACC's
+    ``predecessors``, Gipps's ``theta=None``) holds one model over all ``n`` rows for the
+    life of the holder; assigning a row writes its parameters into that model's arrays in
+    place (no rebuild when scenes restart, which in a vector env is every step), and the
+    law runs over all ``n`` rows with only the group's rows kept (rows of other groups hold
+    valid parameters of the group's first member, and their outputs are discarded)."""
 
     _FIELDS = tuple(f.name for f in fields(Observation))
 
     def __init__(self, n: int, dt: float):
         self.n = int(n)
         self.dt = float(dt)
-        self._cls: dict[int, type] = {}  # row -> model class
-        self._params: dict[int, object] = {}  # row -> its (validated) parameters
         self._delay = np.zeros(self.n, dtype=np.int64)  # row -> delay [steps]
         self._ring = np.zeros((len(self._FIELDS), self.n, 1))
-        # (model over its rows, the rows, whether any has a delay); None: rebuild at the next act
-        self._groups: list[tuple[object, np.ndarray, bool]] | None = []
+        self._keys: list[tuple] = []  # group index -> (model class, fixed fields)
+        self._models: list = []  # group index -> its model over all n rows
+        self._group = np.full(self.n, -1, dtype=np.int64)  # row -> its group (-1: no baseline driver)
+        self._active: list[tuple[object, np.ndarray, bool]] | None = []  # (model, rows, delayed); None: recompute
         self._delayed = False
-        self._whole = False
         self.rows = np.zeros(0, dtype=np.int64)
 
     def assign(self, row: int, cls, params) -> None:
         """Row ``row`` is driven by model ``cls`` with ``params`` (one vehicle's) from now."""
         model = cls(params, n=1, dt=self.dt)  # validates, and gives this row's delay
-        self._cls[row], self._params[row] = cls, model.params
+        p = model.params
+        # fields that cannot hold one number per row (declared without an array type: ACC's
+        # predecessors; or None: Gipps's theta=None) split the groups
+        per_row = {f.name: getattr(p, f.name) is not None and "ndarray" in str(f.type) for f in fields(p)}
+        fixed = tuple((name, getattr(p, name)) for name, yes in per_row.items() if not yes)
+        key = (cls, fixed)
+        values = {name: float(np.asarray(getattr(p, name)).ravel()[0]) for name, yes in per_row.items() if yes}
+        if key in self._keys:
+            g = self._keys.index(key)
+            group_params = self._models[g].params
+            for name, value in values.items():
+                getattr(group_params, name)[row] = value
+        else:
+            g = len(self._keys)
+            full = {name: np.full(self.n, value) for name, value in values.items()}
+            self._keys.append(key)
+            self._models.append(cls(type(p)(**full, **dict(fixed)), n=self.n, dt=self.dt))
+        self._group[row] = g
         self._delay[row] = model._delay.delay_steps
         if self._delay[row] + 1 > self._ring.shape[2]:
             self._ring = np.concatenate(
                 [self._ring, np.zeros(self._ring.shape[:2] + (int(self._delay[row]) + 1 - self._ring.shape[2],))], axis=2)
-        self._groups = None
+        self._active = None
 
     def remove(self, row: int) -> None:
-        if self._cls.pop(row, None) is not None:
-            self._params.pop(row)
+        if self._group[row] >= 0:
+            self._group[row] = -1
             self._delay[row] = 0
-            self._groups = None
+            self._active = None
 
     @property
     def assigned(self) -> bool:
         """Whether any row has a baseline driver."""
-        return bool(self._cls)
+        return bool(np.any(self._group >= 0))
 
-    def _build(self) -> list:
-        groups: dict[tuple, list[int]] = {}
-        for row in sorted(self._cls):
-            p = self._params[row]
-            # fields that are not per-row numbers (ACC's predecessors, Gipps's theta=None) split the groups
-            shape = tuple((f.name, getattr(p, f.name)) for f in fields(p)
-                          if getattr(p, f.name) is None or isinstance(getattr(p, f.name), (int, np.integer)))
-            groups.setdefault((self._cls[row], shape), []).append(row)
-        built = []
-        for (cls, shape), rows in groups.items():
-            fixed = dict(shape)
-            first = self._params[rows[0]]
-            values = {f.name: (fixed[f.name] if f.name in fixed else
-                               np.array([float(np.asarray(getattr(self._params[r], f.name)).ravel()[0]) for r in rows]))
-                      for f in fields(first)}
-            grp = np.array(rows, dtype=np.int64)
-            built.append((cls(type(first)(**values), n=len(rows), dt=self.dt), grp, bool(np.any(self._delay[grp] > 0))))
-        self.rows = np.array(sorted(self._cls), dtype=np.int64)
-        self._delayed = bool(np.any(self._delay[self.rows] > 0))
-        self._whole = len(built) == 1 and self.rows.size == self.n  # one group over every row: no take()
-        return built
+    def _groups(self) -> list:
+        if self._active is None:
+            self.rows = np.flatnonzero(self._group >= 0)
+            self._delayed = bool(np.any(self._delay[self.rows] > 0))
+            self._active = []
+            for g, model in enumerate(self._models):
+                grp = np.flatnonzero(self._group == g)
+                if grp.size:
+                    self._active.append((model, grp, bool(np.any(self._delay[grp] > 0))))
+        return self._active
 
     def act(self, obs: Observation, clock: np.ndarray, out: np.ndarray) -> None:
         """Write the baseline rows' desired accelerations into ``out``; ``clock[row]`` is the
         number of steps the row's driver has taken."""
-        if self._groups is None:
-            self._groups = self._build()
+        groups = self._groups()
         size = self._ring.shape[2]
         present = [i for i, name in enumerate(self._FIELDS) if getattr(obs, name) is not None]
         if self._delayed:  # the ring is kept only while some row has a reaction delay
@@ -252,15 +289,21 @@ class BaselineRows:
             k = clock[rows] % size
             for i in present:
                 self._ring[i, rows, k] = getattr(obs, self._FIELDS[i])[rows]
-        for model, grp, delayed in self._groups:
-            now = obs if self._whole else obs.take(grp)
-            seen = now
-            if delayed:
-                back = np.maximum(clock[grp] - self._delay[grp], 0) % size
-                seen = Observation(**{name: (self._ring[i, grp, back] if i in present else None)
-                                      for i, name in enumerate(self._FIELDS)})
-            a = np.asarray(model._law(now, seen), dtype=float)
+        seen = obs
+        if any(delayed for _, _, delayed in groups):
+            every = np.arange(self.n)
+            back = np.maximum(clock - self._delay, 0) % size
+            seen = Observation(**{name: (self._ring[i, every, back] if i in present else None)
+                                  for i, name in enumerate(self._FIELDS)})
+        for model, grp, delayed in groups:
+            with np.errstate(all="ignore"):  # rows outside the group may hold any state; their outputs are dropped
+                a = np.asarray(model._law(obs, seen if delayed else obs), dtype=float)
+            a = a[grp]
             out[grp] = np.clip(np.nan_to_num(a, nan=A_FLOOR, posinf=A_CEIL, neginf=A_FLOOR), A_FLOOR, A_CEIL)
+
+
+# the cruise of an idle row (besides its speed, v_desired): rows of Observation's field order
+_CRUISE_ROWS = ((1, 0.0), (2, np.inf), (3, 0.0), (4, 0.0), (5, np.inf), (6, 0.0), (7, 0.0))
 
 
 def _cruise_state(obs: Observation, idle: np.ndarray, v_desired: np.ndarray) -> Observation:

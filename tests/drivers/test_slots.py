@@ -82,6 +82,36 @@ def test_slot_rows_equal_their_drivers_run_alone():
     assert out[1] == alone[1].act(o.take([1]))[0]
 
 
+def test_rows_path_of_mpc_absent_and_profile_rows_equals_each_driver_alone():
+    """The array path taken when a batch holds MPC drivers, absent vehicles and profiles but
+    no baseline model (issue 18: the single env's 1- and 2-vehicle scenes): every MPC and
+    profile row equals its driver run alone, absent rows ask for 0 with mode -1, also after
+    a row changes kind mid-run."""
+    rng = np.random.default_rng(5)
+    mpc_params = [sample_drivers(rng, 1, 20.0 + 3 * j) for j in range(2)]
+    profile = SpeedProfile.from_segments(10.0, [(1.0, 4.0), (-2.0, 3.0), (0.0, 5.0)])
+    slot = SlotDrivers(4, 0.2)
+    slot.assign(0, DriverSpec.mpc(mpc_params[0]))
+    slot.assign(1, None)
+    slot.assign(2, DriverSpec.from_profile(profile))
+    slot.assign(3, DriverSpec.mpc(mpc_params[1]))
+    alone = {0: MPCDriver(mpc_params[0]), 2: ProfileDriver(profile, n=1, dt=0.2), 3: MPCDriver(mpc_params[1])}
+    for k in range(30):
+        if k == 15:  # row 3's vehicle leaves, row 1's enters
+            slot.assign(3, None)
+            slot.assign(1, DriverSpec.mpc(mpc_params[1]))
+            alone[1] = MPCDriver(mpc_params[1])
+            del alone[3]
+        o = obs_for(4, k)
+        rows = np.array([o.v, o.a, o.gap, o.v_lead, o.a_lead, np.full(4, np.inf), np.zeros(4), np.zeros(4)])
+        out = slot.act_rows(rows)
+        for j, model in alone.items():
+            assert out[j] == model.act(o.take([j]))[0], (k, j)
+        absent = [j for j in range(4) if j not in alone]
+        assert np.all(out[absent] == 0.0) and np.all(slot.info["mode"][absent] == -1)
+        assert np.all(slot.info["mode"][[j for j in alone if j != 2]] >= 0)
+
+
 BASELINE_SPECS = [("idm", {"v_desired": 22.0, "tau": 0.4}), ("idm", {"v_desired": 30.0}),
                   ("idm", {"time_gap": 1.1, "tau": 1.0}), ("gipps", {"tau": 0.6}),
                   ("gipps", {"tau": 1.0, "theta": 0.3}), ("acc", {"k1": 0.3}),
