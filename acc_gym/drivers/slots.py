@@ -104,12 +104,33 @@ class SlotDrivers:
                 self._mpc.set_params(rows, self._mpc.params.take(rows))
         # baseline rows restart with the clocks: a row's delay history is read by its clock
 
-    def _all_mpc(self) -> bool:
+    def _path(self) -> str:
+        """How a step of the current kinds of rows runs, decided once per change of kinds:
+        ``"mpc"`` (every row an MPC driver), ``"mpc+idle"`` (MPC drivers, absent vehicles
+        and profiles: the MPC array path with the other rows cruising), ``"mixed"``."""
         kinds = self.kind.tobytes()
         if kinds != getattr(self, "_kinds_seen", None):
             self._kinds_seen = kinds
-            self._all_mpc_cached = bool(self._mpc is not None and np.all(self.kind == 1))
-        return self._all_mpc_cached
+            is_mpc = self.kind == 1
+            if self._mpc is not None and is_mpc.all():
+                self._path_cached = "mpc"
+            elif self._mpc is not None and is_mpc.any() and not np.any(self.kind == 3):
+                self._path_cached = "mpc+idle"
+                self._is_mpc = is_mpc
+                self._idle = np.flatnonzero(~is_mpc)
+                # the idle rows' cruise (Observation's field order), their speed the MPC row's v_desired
+                cruise = np.zeros((len(_CRUISE_ROWS) + 1, self._idle.size))
+                cruise[0] = self._mpc.params.v_desired[self._idle]
+                for i, value in _CRUISE_ROWS:
+                    cruise[i] = value
+                self._cruise = cruise
+                self._has_profiles = bool(np.any(self.kind == 2))
+            else:
+                self._path_cached = "mixed"
+        return self._path_cached
+
+    def _all_mpc(self) -> bool:
+        return self._path() == "mpc"
 
     # ------------------------------------------------------------------ step
     def _idle_rows_cruising(self, obs: Observation, idle: np.ndarray) -> Observation:
@@ -130,10 +151,11 @@ class SlotDrivers:
         :meth:`MPCDriver.act_rows <acc_gym.drivers.mpc.MPCDriver.act_rows>`): when every
         scene's driver is an MPC driver, the batch takes that cheaper path; otherwise
         :meth:`act` on the :class:`~acc_gym.drivers.base.Observation` of the rows."""
-        if not self._all_mpc():
-            if self._mpc is None or self._baseline.assigned or not np.any(self.kind == 1):
-                return self.act(Observation(*rows))
+        path = self._path()
+        if path == "mpc+idle":
             return self._act_rows_mpc_and_idle(rows)
+        if path == "mixed":
+            return self.act(Observation(*rows))
         mpc = self._mpc
         out = mpc.act_rows(rows)
         self.fallbacks[:] = mpc.stats_column("fallback")
@@ -148,16 +170,16 @@ class SlotDrivers:
         batch takes its array path, with the other rows set to the cruise of
         :meth:`_idle_rows_cruising` in a copy of the rows (the same numbers as :meth:`act`)."""
         mpc = self._mpc
-        is_mpc = self.kind == 1
-        idle = ~is_mpc
+        is_mpc = self._is_mpc
         cruise = rows.copy()
-        cruise[0, idle] = mpc.params.v_desired[idle]
-        for i, value in _CRUISE_ROWS:
-            cruise[i, idle] = value
-        out = np.where(is_mpc, mpc.act_rows(cruise), 0.0)
-        mode = np.where(is_mpc, mpc.mode, -1)
+        m = min(rows.shape[0], self._cruise.shape[0])
+        cruise[:m, self._idle] = self._cruise[:m]
+        out = mpc.act_rows(cruise)
+        out[self._idle] = 0.0
+        mode = mpc.mode.copy()
+        mode[self._idle] = -1
         self.fallbacks[is_mpc] = mpc.stats_column("fallback")[is_mpc]
-        if self.kind.max() == 2:  # scripted profiles (no baseline rows on this path)
+        if self._has_profiles:
             self._play_profiles(rows[0], out)
         self._clock += 1
         self.info = {"mode": mode}
