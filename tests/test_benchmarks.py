@@ -56,6 +56,16 @@ def test_sumo_peer_drives_the_documented_column():
     assert sumo_peer.episode() == (v, gap, v_lead)  # a reload restarts the same episode
 
 
+def test_bench_score_json_keys():
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_score.py"), "--json", "--episodes", "2",
+                        "--loops", "1", "--repeats", "1"], capture_output=True, text=True, check=True, cwd=ROOT)
+    out = json.loads(r.stdout)
+    assert out["traces"] == 4 and out["samples_min"] >= 2
+    for key in ("reference_us", "compiled_us"):
+        assert out[key] > 0 and len(out[key + "_runs"]) == 1
+    assert out["ratio"] == pytest.approx(out["reference_us"] / out["compiled_us"], rel=1e-6)
+
+
 def test_bench_campaign_json_keys():
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_campaign.py"), "--json", "--repeats", "1",
                         "--suite", "ncap-v1", "--hours", "0.005", "--chunk-size", "1"], capture_output=True, text=True,

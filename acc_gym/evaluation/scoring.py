@@ -124,9 +124,10 @@ import numpy as np
 
 from acc_gym._io import json_safe
 from acc_gym._validation import from_mapping
+from acc_gym.evaluation import _score_kernel as _K
 from acc_gym.evaluation.indicators import comfort_j, efficiency_u, gap_safe, in_band, safety_q
-from acc_gym.evaluation.metrics import extra_metrics
-from acc_gym.evaluation.trace import EgoTrace
+from acc_gym.evaluation.metrics import MIN_DEVIATION, STEADY_ACCEL, STEADY_TIME, damping_ratio, extra_metrics
+from acc_gym.evaluation.trace import _EMPTY, _LANE_CENTRED, EgoTrace
 
 DEFAULT_TAU1 = 1.5  # [s] when neither the config nor the trace gives one
 SAFETY_RULES = ("proper-response", "literal")
@@ -311,8 +312,106 @@ def judged_tau1(nominal: float | None, declared: float | None, config: ScoringCo
     return min(max(float(declared), config.tau1_floor), base)
 
 
+_F64 = np.dtype(np.float64)
+_DEFAULT_CONFIG = ScoringConfig()
+_SCALAR_TYPES = (float, int, np.float64)  # a set speed of these types takes the compiled path
+
+
+def _kernel_params(cfg: ScoringConfig) -> tuple:
+    """What the compiled path needs of a config: the parameter vector of
+    :func:`acc_gym.evaluation._score_kernel.score`, the two requirements' texts and the band's
+    share needed. Made once per config and kept on it (frozen; like :meth:`ScoringConfig.to_dict`)."""
+    kp = cfg.__dict__.get("_kernel")
+    if kp is not None:
+        return kp
+    literal_band = cfg.band == "literal"
+    values = {
+        _K.P_B0: cfg.b0, _K.P_B1: cfg.b1, _K.P_BAND_WIDTH: cfg.band_width, _K.P_STEADY_DV: cfg.steady_dv,
+        _K.P_MOVING: cfg.moving_speed, _K.P_TRANSIENT: cfg.transient, _K.P_SENSOR: cfg.sensor_range,
+        _K.P_RESPONSE_DECEL: cfg.response_decel, _K.P_STOP_SPEED: cfg.stop_speed, _K.P_LEAD_MARGIN: cfg.lead_margin,
+        _K.P_SPEED_TOL: SPEED_TOL, _K.P_APPROACH_DECEL: cfg.approach_decel,
+        _K.P_BAND_NEEDED: 1.0 if literal_band else cfg.band_share, _K.P_A_X: cfg.a_x_comfort,
+        _K.P_A_Y: cfg.a_y_comfort, _K.P_LANE_CENTRED: _LANE_CENTRED, _K.P_STEADY_ACCEL: STEADY_ACCEL,
+        _K.P_STEADY_TIME: STEADY_TIME, _K.P_MIN_DEVIATION: MIN_DEVIATION,
+        _K.P_LITERAL_SAFETY: cfg.safety == "literal", _K.P_LITERAL_BAND: literal_band, _K.P_CLIP: cfg.clip,
+        _K.P_ITEM_POINTS: ITEM_POINTS,
+    }
+    p = np.empty(_K.N_PARAMS)
+    for k, value in values.items():
+        p[k] = float(value)
+    kp = (p, "Q >= 0" if cfg.safety == "literal" else "Q >= 0 or proper response",
+          f"0 < G < {cfg.band_width:g} Gapsafe", 1.0 if literal_band else cfg.band_share)
+    object.__setattr__(cfg, "_kernel", kp)
+    return kp
+
+
 def score_episode(trace: EgoTrace, config: ScoringConfig | None = None) -> EpisodeReport:
-    """Score one episode (paper 003 Table 3 under ``config``; defaults: module docstring)."""
+    """Score one episode (paper 003 Table 3 under ``config``; defaults: module docstring).
+
+    Computed in one compiled call (:func:`acc_gym.evaluation._score_kernel.score`) with the
+    same report, value for value, as :func:`score_episode_reference`, the numpy definition
+    (``tests/evaluation/test_score_kernel.py`` compares the two). A trace whose columns are
+    not 1-D float64 arrays of one length (an :class:`EgoTrace` built the ordinary way always
+    has them), a set speed that is not a Python or numpy float or int, or a config that is
+    not a :class:`ScoringConfig` takes the reference.
+    """
+    cfg = config if config is not None else _DEFAULT_CONFIG
+    if not isinstance(trace, EgoTrace):
+        raise TypeError(f"score_episode needs an EgoTrace, got {type(trace).__name__}")
+    t = trace.t
+    set_speed = trace.set_speed
+    if not (type(cfg) is ScoringConfig and type(t) is np.ndarray and t.ndim == 1
+            and (set_speed is None or type(set_speed) in _SCALAR_TYPES)):
+        return score_episode_reference(trace, config)
+    shape = t.shape
+    cols = (t, trace.v, trace.a, trace.gap, trace.v_lead, trace.lead_id, trace.a_y, trace.d2, trace.d3)
+    for c in cols:
+        if c is not None and not (type(c) is np.ndarray and c.dtype is _F64 and c.shape == shape):
+            return score_episode_reference(trace, config)
+    if shape[0] < 2:
+        return score_episode_reference(trace, config)
+    p, safety_rule, band_rule, share_needed = _kernel_params(cfg)
+    tau1 = float(judged_tau1(trace.time_gap, trace.declared_time_gap, cfg))
+    grace = float(cfg.response_time) if cfg.response_time is not None else tau1
+    out = np.empty(_K.N_OUT)
+    _K.score(t, cols[1], cols[2], cols[3], cols[4], _EMPTY if cols[5] is None else cols[5],
+             _EMPTY if cols[6] is None else cols[6], _EMPTY if cols[7] is None else cols[7],
+             _EMPTY if cols[8] is None else cols[8], p, tau1, grace,
+             np.nan if set_speed is None else float(set_speed), out)
+    o = out.tolist()
+    violations = int(o[_K.O_VIOLATIONS])
+    min_q = o[_K.O_MIN_Q]
+    collision = o[_K.O_COLLISION] != 0.0
+    safety = ItemResult("safety", safety_rule, o[_K.O_SAFE_OK] != 0.0, True, {
+        "violations": violations, "first_violation_t": o[_K.O_FIRST_VIOLATION_T] if violations else None,
+        "min_q": None if min_q != min_q else min_q, "collision": collision})
+    car_following = ItemResult("car_following", band_rule, o[_K.O_BAND_OK] != 0.0, o[_K.O_APPLICABLE] != 0.0,
+                               {"share_in_band": o[_K.O_SHARE], "samples": int(o[_K.O_SAMPLES]),
+                                "share_needed": share_needed, "approaching": o[_K.O_APPROACHING] != 0.0})
+    edge = ItemResult("road_edge", "D2 > 0", o[_K.O_EDGE_OK] != 0.0, True, {"min_d2": o[_K.O_MIN_D2]})
+    line = ItemResult("boundary_line", "D3 > 0", o[_K.O_LINE_OK] != 0.0, True, {"min_d3": o[_K.O_MIN_D3]})
+    overshoot = o[_K.O_OVERSHOOT]
+    metrics = {
+        "collision": collision,
+        "share_comfortable": o[_K.O_SHARE_COMFORTABLE],
+        "share_safe_spacing": o[_K.O_SHARE_SAFE_SPACING],
+        "min_ttc": o[_K.O_MIN_TTC],
+        "max_jerk": o[_K.O_MAX_JERK],
+        "speed_overshoot": overshoot,
+        "damping_ratio": damping_ratio(overshoot),
+        "transients": int(o[_K.O_TRANSIENTS]),
+        "min_gap": o[_K.O_MIN_GAP],
+        "duration": o[_K.O_DURATION],
+    }
+    return EpisodeReport(score=o[_K.O_SCORE], qualified=o[_K.O_QUALIFIED] != 0.0,
+                         items=(safety, car_following, edge, line), r1=o[_K.O_R1], r2=o[_K.O_R2], u=o[_K.O_U],
+                         j_x=o[_K.O_J_X], j_y=o[_K.O_J_Y], tau1=tau1, metrics=metrics, config=cfg)
+
+
+def score_episode_reference(trace: EgoTrace, config: ScoringConfig | None = None) -> EpisodeReport:
+    """Score one episode (paper 003 Table 3 under ``config``; defaults: module docstring).
+
+    The numpy definition the compiled :func:`score_episode` is tested against."""
     cfg = config if config is not None else ScoringConfig()
     if not isinstance(trace, EgoTrace):
         raise TypeError(f"score_episode needs an EgoTrace, got {type(trace).__name__}")
