@@ -350,6 +350,21 @@ def _running_sums(hinv):  # pragma: no cover - compiled
     return out
 
 
+@numba.njit(cache=True)
+def _row_cumsums(g):  # pragma: no cover - compiled
+    """``(N, N+1)``: a zero column, then ``np.cumsum(g, axis=1)`` (numpy's accumulate: each row
+    summed in order from its first entry, so the same bits) without its strided output."""
+    n, m = g.shape
+    out = np.zeros((n, m + 1))
+    for i in range(n):
+        s = g[i, 0]
+        out[i, 1] = s
+        for j in range(1, m):
+            s += g[i, j]
+            out[i, j + 1] = s
+    return out
+
+
 class CondensedQP:
     """The QP of one driver configuration ``(q1, q2, r1, c_TG)``, condensed once.
 
@@ -443,9 +458,7 @@ class CondensedQP:
         driver kernel's form: the predicted lead accelerations are piecewise constant). Made
         on first use and kept, like :attr:`gain_lead` (the QP is immutable and shared)."""
         if "_gain_lead_sums" not in self.__dict__:
-            g = self.gain_lead
-            sums = np.zeros((g.shape[0], g.shape[1] + 1))
-            np.cumsum(g, axis=1, out=sums[:, 1:])
+            sums = _row_cumsums(self.gain_lead)
             sums.setflags(write=False)
             self._gain_lead_sums = sums
         return self._gain_lead_sums
