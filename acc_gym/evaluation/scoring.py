@@ -195,6 +195,12 @@ class ScoringConfig:
             object.__setattr__(self, "_as_dict", asdict(self))
         return dict(self._as_dict)
 
+    def to_json_dict(self) -> dict:
+        """:meth:`to_dict` made JSON-safe (:func:`acc_gym._io.json_safe`), made once like it."""
+        if "_as_json" not in self.__dict__:
+            object.__setattr__(self, "_as_json", json_safe(self.to_dict()))
+        return dict(self._as_json)
+
     @classmethod
     def from_dict(cls, d: dict) -> "ScoringConfig":
         return from_mapping(cls, d, "scoring")
@@ -239,13 +245,15 @@ class EpisodeReport:
 
     def to_dict(self) -> dict:
         """JSON-safe (NaN -> None, infinities -> ``"inf"``; :func:`acc_gym._io.json_safe`)."""
-        return json_safe({
+        out = json_safe({
             "score": self.score, "qualified": self.qualified, "r1": self.r1, "r2": self.r2, "u": self.u,
             "j_x": self.j_x, "j_y": self.j_y, "tau1": self.tau1,
             "items": {it.name: {"qualified": it.qualified, "applicable": it.applicable, "points": it.points,
                                 "requirement": it.requirement, **it.detail} for it in self.items},
-            "metrics": self.metrics, "config": self.config.to_dict(),
+            "metrics": self.metrics,
         })
+        out["config"] = self.config.to_json_dict()
+        return out
 
     def summary(self) -> str:
         lines = [f"score {self.score:.1f} / 100 ({'qualified' if self.qualified else 'NOT qualified'})"]
