@@ -141,6 +141,18 @@ def _clip01(x):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, error_model="numpy")
+def _smallest(x, n, absent):  # pragma: no cover - compiled
+    """The smallest of the ``n`` entries of an optional column ``x`` (``absent`` when it is empty)."""
+    if x.shape[0] != n:
+        return absent
+    m = x[0]
+    for i in range(1, n):
+        if x[i] < m:
+            m = x[i]
+    return m
+
+
+@numba.njit(cache=True, error_model="numpy")
 def score(t, v, a, gap, v_lead, lead_id, a_y, d2, d3, p, tau1, grace, set_speed, out):  # pragma: no cover
     """Write the episode's score and every value behind it into ``out`` (:data:`N_OUT`).
 
@@ -325,19 +337,8 @@ def score(t, v, a, gap, v_lead, lead_id, a_y, d2, d3, p, tau1, grace, set_speed,
     r1 = 0.0 if math.isnan(u) else (1.0 - u) * 20.0
 
     # lane items
-    lane = p[P_LANE_CENTRED]
-    min_d2 = lane
-    if d2.shape[0] == n:
-        min_d2 = d2[0]
-        for i in range(1, n):
-            if d2[i] < min_d2:
-                min_d2 = d2[i]
-    min_d3 = lane
-    if d3.shape[0] == n:
-        min_d3 = d3[0]
-        for i in range(1, n):
-            if d3[i] < min_d3:
-                min_d3 = d3[i]
+    min_d2 = _smallest(d2, n, p[P_LANE_CENTRED])
+    min_d3 = _smallest(d3, n, p[P_LANE_CENTRED])
     edge_ok = min_d2 > 0.0
     line_ok = min_d3 > 0.0
 
