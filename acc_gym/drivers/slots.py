@@ -112,9 +112,12 @@ class SlotDrivers:
         if kinds != getattr(self, "_kinds_seen", None):
             self._kinds_seen = kinds
             is_mpc = self.kind == 1
+            self._profile_rows = np.flatnonzero(self.kind == 2)
+            self._has_profiles = self._profile_rows.size > 0
+            self._has_baselines = bool(np.any(self.kind == 3))
             if self._mpc is not None and is_mpc.all():
                 self._path_cached = "mpc"
-            elif self._mpc is not None and is_mpc.any() and not np.any(self.kind == 3):
+            elif self._mpc is not None and is_mpc.any() and not self._has_baselines:
                 self._path_cached = "mpc+idle"
                 self._is_mpc = is_mpc
                 self._idle = np.flatnonzero(~is_mpc)
@@ -124,7 +127,6 @@ class SlotDrivers:
                 for i, value in _CRUISE_ROWS:
                     cruise[i] = value
                 self._cruise = cruise
-                self._has_profiles = bool(np.any(self.kind == 2))
             else:
                 self._path_cached = "mixed"
         return self._path_cached
@@ -186,8 +188,9 @@ class SlotDrivers:
         return out
 
     def _play_profiles(self, v: np.ndarray, out: np.ndarray) -> None:
-        """The profile rows' accelerations to their next speed sample (speeds ``v``) into ``out``."""
-        rows = np.flatnonzero(self.kind == 2)
+        """The profile rows' accelerations to their next speed sample (speeds ``v``) into ``out``
+        (rows from :meth:`_path`, which runs first in every step)."""
+        rows = self._profile_rows
         k = np.minimum(self._clock[rows] + 1, self._profile.shape[1] - 1)
         out[rows] = (self._profile[rows, k] - v[rows]) / self.dt
 
@@ -206,9 +209,9 @@ class SlotDrivers:
             out[is_mpc] = a[is_mpc]
             mode[is_mpc] = self._mpc.mode[is_mpc]
             self.fallbacks[is_mpc] = self._mpc.stats_column("fallback")[is_mpc]
-        if np.any(self.kind == 2):
+        if self._has_profiles:
             self._play_profiles(np.asarray(obs.v), out)
-        if self._baseline.assigned:
+        if self._has_baselines:
             self._baseline.act(obs, self._clock, out)
         self._clock += 1
         self.info = {"mode": mode}
@@ -283,11 +286,6 @@ class BaselineRows:
             self._group[row] = -1
             self._delay[row] = 0
             self._active = None
-
-    @property
-    def assigned(self) -> bool:
-        """Whether any row has a baseline driver."""
-        return bool(np.any(self._group >= 0))
 
     def _groups(self) -> list:
         if self._active is None:
