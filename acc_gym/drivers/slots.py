@@ -121,12 +121,7 @@ class SlotDrivers:
                 self._path_cached = "mpc+idle"
                 self._is_mpc = is_mpc
                 self._idle = np.flatnonzero(~is_mpc)
-                # the idle rows' cruise (Observation's field order), their speed the MPC row's v_desired
-                cruise = np.zeros((len(_CRUISE_ROWS) + 1, self._idle.size))
-                cruise[0] = self._mpc.params.v_desired[self._idle]
-                for i, value in _CRUISE_ROWS:
-                    cruise[i] = value
-                self._cruise = cruise
+                self._cruise = _cruise_columns(self._mpc.params.v_desired[self._idle])
             else:
                 self._path_cached = "mixed"
         return self._path_cached
@@ -247,7 +242,7 @@ class BaselineRows:
         self.dt = float(dt)
         self._delay = np.zeros(self.n, dtype=np.int64)  # row -> delay [steps]
         self._ring = np.zeros((len(self._FIELDS), self.n, 1))
-        self._keys: list[tuple] = []  # group index -> (model class, fixed fields)
+        self._keys: dict[tuple, int] = {}  # (model class, fixed fields) -> group index
         self._models: list = []  # group index -> its model over all n rows
         self._group = np.full(self.n, -1, dtype=np.int64)  # row -> its group (-1: no baseline driver)
         self._active: list[tuple[object, np.ndarray, bool]] | None = []  # (model, rows, delayed); None: recompute
@@ -264,15 +259,15 @@ class BaselineRows:
         fixed = tuple((name, getattr(p, name)) for name, yes in per_row.items() if not yes)
         key = (cls, fixed)
         values = {name: float(np.asarray(getattr(p, name)).ravel()[0]) for name, yes in per_row.items() if yes}
-        if key in self._keys:
-            g = self._keys.index(key)
+        g = self._keys.get(key)
+        if g is not None:
             group_params = self._models[g].params
             for name, value in values.items():
                 getattr(group_params, name)[row] = value
         else:
             g = len(self._keys)
             full = {name: np.full(self.n, value) for name, value in values.items()}
-            self._keys.append(key)
+            self._keys[key] = g
             self._models.append(cls(type(p)(**full, **dict(fixed)), n=self.n, dt=self.dt))
         self._group[row] = g
         self._delay[row] = model._delay.delay_steps
@@ -323,14 +318,24 @@ class BaselineRows:
 
 
 # the cruise of an idle row (besides its speed, v_desired): rows of Observation's field order
-_CRUISE_ROWS = ((1, 0.0), (2, np.inf), (3, 0.0), (4, 0.0), (5, np.inf), (6, 0.0), (7, 0.0))
+# an idle row's steady cruise with nothing ahead, besides its speed (its v_desired)
+_CRUISE = {"a": 0.0, "gap": np.inf, "v_lead": 0.0, "a_lead": 0.0, "gap2": np.inf, "v_lead2": 0.0, "a_lead2": 0.0,
+           "stop_gap": np.inf}
+_OBS_NAMES = tuple(f.name for f in fields(Observation))  # Observation's field order (observation rows)
+
+
+def _cruise_columns(v_desired: np.ndarray) -> np.ndarray:
+    """The cruise of idle rows with speeds ``v_desired`` as columns in Observation's field order."""
+    cols = np.empty((len(_OBS_NAMES), v_desired.size))
+    for i, name in enumerate(_OBS_NAMES):
+        cols[i] = v_desired if name == "v" else _CRUISE[name]
+    return cols
 
 
 def _cruise_state(obs: Observation, idle: np.ndarray, v_desired: np.ndarray) -> Observation:
     """``obs`` with the ``idle`` rows replaced by a steady cruise at ``v_desired`` with
     nothing ahead."""
-    cruise = {"v": v_desired, "a": 0.0, "gap": np.inf, "v_lead": 0.0, "a_lead": 0.0, "gap2": np.inf, "v_lead2": 0.0,
-              "a_lead2": 0.0, "stop_gap": np.inf}
+    cruise = {"v": v_desired, **_CRUISE}
     fields = {}
     for name, value in cruise.items():
         given = getattr(obs, name)
