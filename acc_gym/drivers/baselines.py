@@ -26,9 +26,11 @@ step, which is exactly their update rule when ``tau`` is a multiple of ``dt``. E
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass, fields
 
+import numba
 import numpy as np
 
 from acc_gym._validation import check_finite
@@ -399,15 +401,59 @@ class IDMParams:
                           f"headway)", UserWarning, stacklevel=3)
 
 
+@numba.njit(cache=True, inline="always")
+def _at(p, r):  # pragma: no cover - compiled
+    return p[r] if p.size > 1 else p[0]
+
+
+@numba.njit(cache=True)
+def _idm_rows(v, gap, v_seen, v_lead, a, b, time_gap, s0, v_desired, delta, rows, out):  # pragma: no cover
+    """:func:`idm_accel` of rows ``rows`` (own speed ``v`` now; ``gap``, ``v_seen`` and
+    ``v_lead`` as perceived), made finite and clipped as :meth:`_Model.act` does, into
+    ``out``; parameters are arrays of one value per row or one value for all."""
+    for r in rows:
+        ar = _at(a, r)
+        vr = v[r]
+        free = 1.0 - (max(vr, 0.0) / _at(v_desired, r)) ** _at(delta, r)
+        g = gap[r]
+        inter = 0.0
+        if math.isfinite(g):
+            dv = v_lead[r] - v_seen[r]
+            s_star = _at(s0, r) + max(0.0, vr * _at(time_gap, r) - vr * dv / (2.0 * math.sqrt(ar * _at(b, r))))
+            q = s_star / max(g, 1e-3)
+            inter = q * q
+        x = ar * (free - inter)
+        if math.isnan(x):
+            x = A_FLOOR
+        out[r] = min(max(x, A_FLOOR), A_CEIL)
+
+
 class IDM(_Model):
-    """Intelligent Driver Model (Treiber, Hennecke, Helbing 2000)."""
+    """Intelligent Driver Model (Treiber, Hennecke, Helbing 2000): :func:`idm_accel`, compiled
+    (:meth:`act_into`), so a batch of rows of a vector environment's IDM drivers costs one
+    call; tests/drivers/test_baselines.py checks it against :func:`idm_accel` to 1e-12."""
 
     params_type = IDMParams
     name = "idm"
 
-    def _law(self, now, seen):
+    def _param_arrays(self) -> tuple:
+        """The parameters as float arrays (one value per row, or one for all), made once: a
+        :class:`~acc_gym.drivers.slots.BaselineRows` group writes new rows into these very arrays."""
         p = self.params
-        return idm_accel(now.v, seen.gap, seen.v_lead - seen.v, p.a, p.b, p.time_gap, p.s0, p.v_desired, p.delta)
+        cached = self.__dict__.get("_arrays")
+        if cached is None or cached[0] is not p:
+            cached = self._arrays = (p, tuple(np.atleast_1d(np.asarray(getattr(p, name), dtype=float))
+                                              for name in ("a", "b", "time_gap", "s0", "v_desired", "delta")))
+        return cached[1]
+
+    def act_into(self, now, seen, rows: np.ndarray, out: np.ndarray) -> None:
+        """The finite, clipped output of rows ``rows`` (as :meth:`act` gives it) into ``out``."""
+        _idm_rows(now.v, seen.gap, seen.v, seen.v_lead, *self._param_arrays(), rows, out)
+
+    def _law(self, now, seen):
+        out = np.empty(np.shape(now.v)[-1])
+        self.act_into(now, seen, np.arange(out.size), out)
+        return out
 
 
 @dataclass(frozen=True)

@@ -365,6 +365,71 @@ def _row_cumsums(g):  # pragma: no cover - compiled
     return out
 
 
+@numba.njit(cache=True)
+def _condense(pp, pv_sym, vv, dd, x_n, v_n, tp_t, tv_t, k_dt, q1, q2, r1, c_tg, r_jerk, p00, p01, p11,
+              slack_quadratic):  # pragma: no cover - compiled
+    """``(ok, hessian, f_theta, hinv, hinv_sums, gain)`` of :class:`CondensedQP` in one call.
+
+    ``f_theta[:, :2] = -2 (Tp' + c Tv') W_x s - 2 Tv' W_v s`` with ``W s_theta`` written out
+    (stage rows ``(q1, q1 k dt)`` and ``(0, q2)``, the terminal row from ``P``), and
+    ``gain = -H^-1 f_theta``: the sums run in ascending ``k`` (plain loops, not BLAS, so the
+    last bits can differ from numpy's products; tests/drivers/test_qp_condensing.py holds
+    them to 1e-9 of the direct dense construction)."""
+    n = pp.shape[0]
+    huu = _assemble_hessian(pp, pv_sym, vv, dd, x_n, v_n, q1, q2, r1, c_tg, r_jerk, p00, p01, p11)
+    wx0 = np.empty(n)  # W s_theta, e_x rows (columns e_x0, e_v0)
+    wx1 = np.empty(n)
+    wv1 = np.empty(n)  # W s_theta, e_v rows (the e_x0 column is zero but on the terminal row)
+    for k in range(n):
+        wx0[k] = q1
+        wx1[k] = q1 * k_dt[k]
+        wv1[k] = q2
+    wx0[n - 1] = p00
+    wx1[n - 1] = p00 * k_dt[n - 1] + p01
+    wv1[n - 1] = p01 * k_dt[n - 1] + p11
+    wv0_last = p01
+    f_theta = np.zeros((n, 3))
+    for i in range(n):
+        px0 = 0.0
+        px1 = 0.0
+        vx0 = 0.0
+        vx1 = 0.0
+        vv1 = 0.0
+        for k in range(n):
+            tp = tp_t[i, k]
+            tv = tv_t[i, k]
+            px0 += tp * wx0[k]
+            px1 += tp * wx1[k]
+            vx0 += tv * wx0[k]
+            vx1 += tv * wx1[k]
+            vv1 += tv * wv1[k]
+        vv0 = tv_t[i, n - 1] * wv0_last
+        f_theta[i, 0] = 2.0 * -(px0 + c_tg * vx0 + vv0)
+        f_theta[i, 1] = 2.0 * -(px1 + c_tg * vx1 + vv1)
+    f_theta[0, 2] = -2.0 * r_jerk
+    hessian = np.zeros((n + 1, n + 1))
+    hessian[:n, :n] = huu
+    hessian[n, n] = 2.0 * slack_quadratic
+    ok, hinv = _spd_inverse(huu)
+    if not ok:
+        return False, hessian, f_theta, hinv, np.zeros((2, n, n)), np.zeros((n, 3))
+    sums = _running_sums(hinv)
+    gain = np.empty((n, 3))
+    for i in range(n):
+        g0 = 0.0
+        g1 = 0.0
+        g2 = 0.0
+        for k in range(n):
+            h = hinv[i, k]
+            g0 += h * f_theta[k, 0]
+            g1 += h * f_theta[k, 1]
+            g2 += h * f_theta[k, 2]
+        gain[i, 0] = -g0
+        gain[i, 1] = -g1
+        gain[i, 2] = -g2
+    return True, hessian, f_theta, hinv, sums, gain
+
+
 class CondensedQP:
     """The QP of one driver configuration ``(q1, q2, r1, c_TG)``, condensed once.
 
@@ -387,15 +452,14 @@ class CondensedQP:
                  slack_linear: float = SLACK_LINEAR, slack_quadratic: float = SLACK_QUADRATIC,
                  r_jerk: float = 0.0):
         for name, value in (("q1", q1), ("q2", q2), ("c_tg", c_tg), ("r_jerk", r_jerk)):
-            if not (np.isfinite(value) and value >= 0):
+            if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be >= 0, got {value!r}")
-        if not (np.isfinite(r1) and r1 > 0):
+        if not (math.isfinite(r1) and r1 > 0):
             raise ValueError(f"r1 must be > 0, got {r1!r}")
         self.q1, self.q2, self.r1, self.c_tg = float(q1), float(q2), float(r1), float(c_tg)
         self.r_jerk = float(r_jerk)
         self.horizon = horizon
         self.slack_linear = float(slack_linear)
-        n = horizon.n_steps
         self.terminal = P = riccati_terminal(q1, q2, r1, c_tg, horizon)
         p00, p01, p11 = float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
         b = _condensing_basis(horizon)
@@ -404,31 +468,16 @@ class CondensedQP:
         # Hessian is M'WM, expanded in c over products of Tp and Tv cached per horizon:
         # only scaled sums of N x N matrices per driver (resets build two QPs per driver).
         x_n = b.p_n + c_tg * b.v_n  # last row of Tp + c Tv
-        huu = _assemble_hessian(b.pp, b.pv_sym, b.vv, b.dd, x_n, b.v_n, q1, q2, r1, c_tg, r_jerk, p00, p01, p11)
-        # linear terms: M'W s_theta (free response of the errors to theta) and M'W [Tp; Tv]
-        # (the target's predicted accelerations), both with the sign of -M
-        ws_x = np.zeros((n, 2))  # W s_theta, e_x rows
-        ws_x[:, 0] = q1
-        ws_x[:, 1] = q1 * b.k_dt
-        ws_x[n - 1] = (p00, p00 * b.k_dt[-1] + p01)
-        ws_v = np.zeros((n, 2))  # W s_theta, e_v rows
-        ws_v[:, 1] = q2
-        ws_v[n - 1] = (p01, p01 * b.k_dt[-1] + p11)
-        mw_s = -(b.tp_t @ ws_x + c_tg * (b.tv_t @ ws_x) + b.tv_t @ ws_v)
-        self.f_theta = np.zeros((n, 3))
-        self.f_theta[:, :2] = 2.0 * mw_s
-        self.f_theta[0, 2] = -2.0 * r_jerk
-        self._lead_args = (q1, q2, c_tg, p00, p01, p11, x_n)  # f_lead and gain_lead are made on first use
-        ok, hinv = _spd_inverse(huu)
+        # one compiled call (_condense): the Hessian M'WM + r1 I + r_jerk D'D from the cached
+        # products, the linear term M'W s_theta (free response of the errors to theta, with
+        # the sign of -M), the inverse, its running column sums and the unconstrained gain
+        ok, hessian, f_theta, hinv, hinv_sums, gain = _condense(
+            b.pp, b.pv_sym, b.vv, b.dd, x_n, b.v_n, b.tp_t, b.tv_t, b.k_dt, q1, q2, r1, c_tg, r_jerk,
+            p00, p01, p11, float(slack_quadratic))
         if not ok:
             raise np.linalg.LinAlgError("the condensed Hessian is not positive definite")
-        self.hinv = hinv
-        # column sums for the driver kernel: [sum_{j<=k} H^-1[:, j], sum_{j<=k} j H^-1[:, j]]
-        self.hinv_sums = _running_sums(hinv)
-        self.gain = -hinv @ self.f_theta
-        self.hessian = np.zeros((n + 1, n + 1))
-        self.hessian[:n, :n] = huu
-        self.hessian[n, n] = 2.0 * slack_quadratic
+        self.hessian, self.f_theta, self.hinv, self.hinv_sums, self.gain = hessian, f_theta, hinv, hinv_sums, gain
+        self._lead_args = (q1, q2, c_tg, p00, p01, p11, x_n)  # f_lead and gain_lead are made on first use
         for arr in (self.f_theta, self.gain, self.hessian, self.hinv, self.hinv_sums, self.terminal):
             arr.setflags(write=False)  # shared: condensed_qp caches one instance per configuration
 

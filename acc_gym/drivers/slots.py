@@ -311,6 +311,10 @@ class BaselineRows:
             seen = Observation(**{name: (self._ring[i, every, back] if i in present else None)
                                   for i, name in enumerate(self._FIELDS)})
         for model, grp, delayed in groups:
+            act_into = getattr(model, "act_into", None)
+            if act_into is not None:  # a compiled law: only the group's rows, written finite and clipped
+                act_into(obs, seen if delayed else obs, grp, out)
+                continue
             with np.errstate(all="ignore"):  # rows outside the group may hold any state; their outputs are dropped
                 a = np.asarray(model._law(obs, seen if delayed else obs), dtype=float)
             a = a[grp]

@@ -39,6 +39,36 @@ def test_idm_hand_step():
     assert idm_accel(v, np.inf, 0.0, a, b, T, s0, v0) == pytest.approx(a * (1 - (v / v0) ** 4))
 
 
+def test_idm_driver_compiled_law_equals_the_array_function():
+    """IDM drivers run a compiled law (one call per batch of rows); it is idm_accel made
+    finite and clipped to [-20, 10] m/s^2, per row, with per-row or shared parameters."""
+    rng = np.random.default_rng(7)
+    n = 400
+    v = rng.uniform(0.0, 45.0, n)
+    v[:3] = 0.0
+    gap = np.where(rng.random(n) < 0.2, np.inf, rng.uniform(0.0, 150.0, n))
+    gap[:5] = [0.0, 1e-6, 0.5, np.inf, 2e-3]
+    v_lead = rng.uniform(0.0, 45.0, n)
+    params = IDMParams(a=rng.uniform(0.5, 3.0, n), b=rng.uniform(1.0, 4.0, n), time_gap=rng.uniform(0.0, 2.5, n),
+                       s0=rng.uniform(0.0, 4.0, n), v_desired=rng.uniform(5.0, 40.0, n), delta=rng.choice([2.0, 4.0], n))
+    obs = Observation.build(v, 0.0, gap, v_lead, 0.0)
+    with np.errstate(all="ignore"):
+        ref = idm_accel(v, gap, v_lead - v, params.a, params.b, params.time_gap, params.s0, params.v_desired,
+                        params.delta)
+    ref = np.clip(np.nan_to_num(ref, nan=-20.0, posinf=10.0, neginf=-20.0), -20.0, 10.0)
+    out = IDM(params, n=n).act(obs)
+    np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-12)
+    assert (out == -20.0).sum() >= 3 and (ref == -20.0).sum() == (out == -20.0).sum()  # the floor is reached
+    # shared parameters (one value for every row) give the same as the same values per row
+    one = IDM(IDMParams(v_desired=22.0), n=n).act(obs)
+    every = IDM(IDMParams(v_desired=np.full(n, 22.0), a=np.full(n, 1.5)), n=n).act(obs)
+    np.testing.assert_array_equal(one, every)
+    # act_into writes only the rows asked for
+    out2 = np.full(n, 99.0)
+    IDM(params, n=n).act_into(obs, obs, np.array([3, 7]), out2)
+    assert out2[3] == out[3] and out2[7] == out[7] and np.count_nonzero(out2 == 99.0) == n - 2
+
+
 def test_other_laws_hand_steps():
     assert gm_accel(20.0, 40.0, -2.0, 12.0, 0.0, 1.0) == pytest.approx(12.0 * -2.0 / 40.0)
     assert gm_accel(20.0, 40.0, -2.0, 30.0, 1.0, 2.0) == pytest.approx(30.0 * 20.0 * -2.0 / 1600.0)
