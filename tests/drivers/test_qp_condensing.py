@@ -76,6 +76,28 @@ def test_condensed_qp_equals_the_direct_construction(h):
         close(qp.hinv @ qp.hessian[:n, :n], np.eye(n), "H^-1 H", rtol=1e-9)
 
 
+@pytest.mark.parametrize("kind", ["typical", "atypical", "malicious"])
+def test_sampled_drivers_qps_equal_the_direct_construction(kind):
+    """The QPs the drivers really get (paper 001's sampled weights, scaled by 1 / max(1, q1)
+    as MPCDriver does; the follow and the cruise QP), against the dense construction."""
+    from acc_gym.drivers.population import sample_drivers
+
+    rng = np.random.default_rng(11)
+    h = Horizon()
+    p = sample_drivers(rng, 12, rng.uniform(3.0, 35.0, 12), kind)
+    rj = np.broadcast_to(np.asarray(p.r_jerk, dtype=float), (12,))
+    for i in range(12):
+        k = 1.0 / max(1.0, p.q1[i])
+        for q1 in (p.q1[i] * k, 0.0):
+            args = (q1, p.q2[i] * k, p.r1[i] * k, p.c_tg[i], h)
+            qp = CondensedQP(*args, r_jerk=rj[i] * k)
+            ref = direct(*args, rj[i] * k)
+            close(qp.hessian[:60, :60], ref["huu"], "hessian")
+            close(qp.f_theta, ref["f_theta"], "f_theta")
+            for name in ("hinv", "gain", "hinv_sums", "gain_lead"):
+                close(getattr(qp, name), ref[name], name, rtol=1e-9)
+
+
 def test_cruise_driver_ignores_the_spacing_error():
     """q1 = 0: no weight on e_x anywhere (P00 = P01 = 0), so the law does not use e_x0."""
     qp = CondensedQP(0.0, 2.0, 20.0, 1.2, Horizon(), r_jerk=1.0)
