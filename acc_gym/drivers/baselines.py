@@ -40,11 +40,18 @@ A_FLOOR = -20.0  # [m/s^2] outputs are clipped to [A_FLOOR, A_CEIL] (the vehicle
 A_CEIL = 10.0
 
 
+_PLAIN = (float, int)  # plain numbers: checked without building arrays (resets validate every new driver)
+
+
 def _validate(params, positive=(), negative=(), nonnegative=()):
     for f in fields(params):
         value = getattr(params, f.name)
         if value is None:
             continue
+        if type(value) in _PLAIN and math.isfinite(value) and not (
+                (f.name in positive and value <= 0) or (f.name in negative and value >= 0)
+                or (f.name in nonnegative and value < 0)):
+            continue  # a valid plain number, checked without numpy (an invalid one gets the messages below)
         check_finite(f"{type(params).__name__}.{f.name}", value)
         arr = np.asarray(value, dtype=float)
         if f.name in positive and np.any(arr <= 0):
@@ -165,12 +172,13 @@ class _Model:
 
     def __init__(self, params=None, n: int | None = None, dt: float = 0.2):
         self.params = params if params is not None else self.params_type()
-        sizes = [np.size(getattr(self.params, f.name)) for f in fields(self.params)]
-        self.n = int(n) if n is not None else max(sizes)
+        sizes = {f.name: 1 if type(v) in _PLAIN or v is None else np.size(v)
+                 for f in fields(self.params) for v in (getattr(self.params, f.name),)}
+        self.n = int(n) if n is not None else max(sizes.values())
         if self.n < 1:
             raise ValueError(f"n must be >= 1, got {self.n}")
         for f in fields(self.params):
-            size = np.size(getattr(self.params, f.name))
+            size = sizes[f.name]
             if size not in (1, self.n):
                 raise ValueError(f"{type(self.params).__name__}.{f.name} has {size} values for n={self.n} vehicles")
         if not (np.isfinite(dt) and dt > 0):
@@ -395,7 +403,9 @@ class IDMParams:
 
     def __post_init__(self):
         _validate(self, positive=("a", "b", "v_desired", "delta"), nonnegative=("time_gap", "s0", "tau"))
-        if np.any(np.asarray(self.tau) >= 0.5) and np.all(np.asarray(self.time_gap) == 1.5):
+        tau, time_gap = self.tau, self.time_gap
+        if (tau >= 0.5 and time_gap == 1.5) if type(tau) in _PLAIN and type(time_gap) in _PLAIN else (
+                np.any(np.asarray(tau) >= 0.5) and np.all(np.asarray(time_gap) == 1.5)):
             warnings.warn(f"IDMParams(tau={self.tau!r}) is a reaction delay, not IDM's time headway (that is "
                           f"time_gap, left at 1.5 s): did you mean time_gap={self.tau!r}? (SUMO's tau is the "
                           f"headway)", UserWarning, stacklevel=3)

@@ -164,6 +164,10 @@ class _Univariate:
         """Draw from the (truncated) law by the inverse CDF; a float if ``size`` is None."""
         _check_rng(rng)
         ua, ub, flip = self._cdf_bounds
+        if size is None:  # one draw (resets draw a few): the same operations on a number, clipped without numpy
+            z = self._std.ppf(ua + (ub - ua) * rng.random())
+            x = float(self._from_z(-z if flip else z))
+            return min(max(x, self.low), self.high)
         z = self._std.ppf(ua + (ub - ua) * rng.random(size))
         x = np.clip(self._from_z(-z if flip else z), self.low, self.high)
         return _out(x)

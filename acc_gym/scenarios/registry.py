@@ -173,9 +173,11 @@ def scenario_rngs(scenario_id: str, seed: int) -> tuple[np.random.Generator, np.
     """The two generators private to (id, seed): one for the parameters, one for the builder
     (surrounding drivers, speed profiles), spawned from ``SeedSequence([crc32(id), seed])`` so
     that giving some parameters explicitly never shifts the builder's draws."""
-    seed = check_seed(seed)
-    params, builder = np.random.SeedSequence([zlib.crc32(scenario_id.encode()), seed]).spawn(2)
-    return np.random.default_rng(params), np.random.default_rng(builder)
+    entropy = [zlib.crc32(scenario_id.encode()), check_seed(seed)]
+    # the two children SeedSequence(entropy).spawn(2) makes (spawn keys (0,) and (1,)), built
+    # directly: the same streams without the parent's pool (resets draw a scenario each)
+    return (np.random.Generator(np.random.PCG64(np.random.SeedSequence(entropy, spawn_key=(0,)))),
+            np.random.Generator(np.random.PCG64(np.random.SeedSequence(entropy, spawn_key=(1,)))))
 
 
 def build(scenario_id: str, params: dict | None = None, seed: int = 0, drivers: str = "typical") -> Scenario:

@@ -2,6 +2,7 @@
 
 import json
 
+import numpy as np
 import pytest
 
 from acc_gym import scenarios
@@ -240,3 +241,18 @@ def test_json_errors_values(doc):
         _from({**doc, "seed": -2})
     # and the untouched document still loads
     assert _from(doc).to_dict() == doc
+
+
+def test_scenario_generators_are_the_documented_spawned_children():
+    """``scenario_rngs`` builds the two children of ``SeedSequence([crc32(id), seed])``
+    directly; their streams are those of ``.spawn(2)``, as the module docstring states."""
+    import zlib
+
+    from acc_gym.scenarios.registry import scenario_rngs
+
+    for sid, seed in (("singlelane/2/cut-in", 0), ("carfollowing/90", 12345), ("ncap/ccrs/30", 2**40)):
+        ours = scenario_rngs(sid, seed)
+        ref = [np.random.default_rng(c) for c in np.random.SeedSequence([zlib.crc32(sid.encode()), seed]).spawn(2)]
+        for a, b in zip(ours, ref):
+            np.testing.assert_array_equal(a.random(50), b.random(50))
+        assert not np.array_equal(ours[0].random(5), ours[1].random(5))
