@@ -8,7 +8,11 @@ simulators). Each model is
 * a **pure function** of arrays (``gipps_speed``, ``idm_accel``, ...), usable on its own,
   and
 * a **driver class** controlling ``n`` vehicles (``act(obs) -> a_des``, ``reset()``,
-  ``info``), with a reaction-delay buffer where the model has a reaction time.
+  ``info``), with a reaction-delay buffer where the model has a reaction time. Its law
+  runs compiled (:mod:`acc_gym.drivers._baseline_kernels`: the array function's
+  operations entry by entry, one call for all rows of a batch, ``act_into``), so a
+  vector environment's baseline drivers cost one call per model and step; the array
+  functions are the definitions (``tests/drivers/test_baselines.py``: equal to 1e-12).
 
 Conventions: ``gap`` is bumper to bumper [m] (``inf``: nothing ahead); relative speed
 ``dv = v_lead - v`` (positive when the gap opens); decelerations ``b`` are negative, as in
@@ -30,10 +34,10 @@ import math
 import warnings
 from dataclasses import dataclass, fields
 
-import numba
 import numpy as np
 
 from acc_gym._validation import check_finite
+from acc_gym.drivers import _baseline_kernels as _k
 from acc_gym.drivers.base import DelayBuffer, Observation, delay_steps
 
 A_FLOOR = -20.0  # [m/s^2] outputs are clipped to [A_FLOOR, A_CEIL] (the vehicle limits further)
@@ -201,8 +205,29 @@ class _Model:
         return np.clip(np.nan_to_num(np.asarray(out, dtype=float), nan=A_FLOOR, posinf=A_CEIL, neginf=A_FLOOR),
                        A_FLOOR, A_CEIL)
 
-    def _law(self, now: Observation, seen: Observation) -> np.ndarray:  # pragma: no cover
-        raise NotImplementedError
+    # the parameters the model's compiled law (acc_gym.drivers._baseline_kernels) takes, in its order
+    _kernel_fields: tuple[str, ...] = ()
+
+    def _param_arrays(self) -> tuple:
+        """The parameters of :attr:`_kernel_fields` as float arrays (one value per row, or one for
+        all; ``None`` as NaN), made once per parameter object: a
+        :class:`~acc_gym.drivers.slots.BaselineRows` group writes new rows into these very arrays."""
+        p = self.params
+        cached = self.__dict__.get("_arrays")
+        if cached is None or cached[0] is not p:
+            cached = self._arrays = (p, tuple(np.atleast_1d(np.asarray(getattr(p, name), dtype=float))
+                                              for name in self._kernel_fields))
+        return cached[1]
+
+    def act_into(self, now: Observation, seen: Observation, rows: np.ndarray, out: np.ndarray) -> None:
+        """The finite, clipped output of rows ``rows`` (as :meth:`act` gives it) into ``out``, by
+        the model's compiled law: one call for a batch's rows (``seen`` is what the rows perceive)."""
+        raise NotImplementedError  # pragma: no cover
+
+    def _law(self, now: Observation, seen: Observation) -> np.ndarray:
+        out = np.empty(np.shape(now.v)[-1])
+        self.act_into(now, seen, np.arange(out.size), out)
+        return out
 
 
 @dataclass(frozen=True)
@@ -226,19 +251,16 @@ class _SpeedModel(_Model):
         super().__init__(params, n, dt)
         self._delay = DelayBuffer(max(delay_steps(float(np.max(self.params.tau)), self.dt) - 1, 0))
 
-    def _law(self, now, seen):
-        return (self._speed(seen) - now.v) / self.dt
-
 
 class Gipps(_SpeedModel):
     """Gipps (1981), or paper 003's form with ``theta``."""
 
     params_type = GippsParams
     name = "gipps"
+    _kernel_fields = ("a", "b", "b_hat", "tau", "theta", "v_desired", "s0")
 
-    def _speed(self, seen):
-        p = self.params
-        return gipps_speed(seen.v, seen.gap, seen.v_lead, p.a, p.b, p.b_hat, p.tau, p.v_desired, p.s0, p.theta)
+    def act_into(self, now, seen, rows, out):  # gipps_speed, compiled
+        _k.gipps_rows(now.v, seen.v, seen.gap, seen.v_lead, *self._param_arrays(), self.dt, rows, out)
 
 
 @dataclass(frozen=True)
@@ -270,12 +292,10 @@ class GM(_Model):
 
     params_type = GMParams
     name = "gm"
+    _kernel_fields = ("c", "m", "l", "v_desired", "k_free", "a_max", "length_ahead")
 
-    def _law(self, now, seen):
-        p = self.params
-        a = gm_accel(now.v, seen.gap + p.length_ahead, seen.v_lead - seen.v, p.c, p.m, p.l)
-        a = np.where(_has(seen.gap), a, np.inf)
-        return np.minimum(a, free_accel(now.v, p.v_desired, p.k_free, p.a_max))
+    def act_into(self, now, seen, rows, out):  # gm_accel (head to head), min free_accel, compiled
+        _k.gm_rows(now.v, seen.gap, seen.v, seen.v_lead, *self._param_arrays(), rows, out)
 
 
 @dataclass(frozen=True)
@@ -302,13 +322,10 @@ class Fuzzy(_Model):
 
     params_type = FuzzyParams
     name = "fuzzy"
+    _kernel_fields = ("T", "gamma", "s0", "h", "level_width", "max_level", "step", "v_desired", "k_free", "a_max")
 
-    def _law(self, now, seen):
-        p = self.params
-        a = fuzzy_accel(seen.v, seen.gap, seen.v_lead - seen.v, seen.a_lead, p.T, p.gamma, p.s0, p.h,
-                        p.level_width, p.max_level, p.step)
-        a = np.where(_has(seen.gap), a, np.inf)
-        return np.minimum(a, free_accel(now.v, p.v_desired, p.k_free, p.a_max))
+    def act_into(self, now, seen, rows, out):  # fuzzy_accel, min free_accel, compiled
+        _k.fuzzy_rows(now.v, seen.v, seen.gap, seen.v_lead, seen.a_lead, *self._param_arrays(), rows, out)
 
 
 @dataclass(frozen=True)
@@ -328,11 +345,10 @@ class Pipes(_Model):
 
     params_type = PipesParams
     name = "pipes"
+    _kernel_fields = ("c", "v_desired", "k_free", "a_max")
 
-    def _law(self, now, seen):
-        p = self.params
-        a = np.where(_has(seen.gap), pipes_accel(seen.v_lead - seen.v, seen.gap, p.c), np.inf)
-        return np.minimum(a, free_accel(now.v, p.v_desired, p.k_free, p.a_max))
+    def act_into(self, now, seen, rows, out):  # pipes_accel, min free_accel, compiled
+        _k.pipes_rows(now.v, seen.v, seen.gap, seen.v_lead, *self._param_arrays(), rows, out)
 
 
 @dataclass(frozen=True)
@@ -351,10 +367,10 @@ class Newell(_SpeedModel):
 
     params_type = NewellParams
     name = "newell"
+    _kernel_fields = ("c", "r_min", "v_desired")
 
-    def _speed(self, seen):
-        p = self.params
-        return newell_speed(seen.gap, p.v_desired, p.c, p.r_min)
+    def act_into(self, now, seen, rows, out):  # newell_speed, compiled
+        _k.newell_rows(now.v, seen.gap, *self._param_arrays(), self.dt, rows, out)
 
 
 @dataclass(frozen=True)
@@ -377,12 +393,10 @@ class Tyler(_Model):
 
     params_type = TylerParams
     name = "tyler"
+    _kernel_fields = ("c_v", "c_s", "c_t", "s0", "v_desired", "k_free", "a_max")
 
-    def _law(self, now, seen):
-        p = self.params
-        a = np.where(_has(seen.gap), tyler_accel(seen.v, seen.gap, seen.v_lead - seen.v, p.c_v, p.c_s, p.c_t, p.s0),
-                     np.inf)
-        return np.minimum(a, free_accel(now.v, p.v_desired, p.k_free, p.a_max))
+    def act_into(self, now, seen, rows, out):  # tyler_accel, min free_accel, compiled
+        _k.tyler_rows(now.v, seen.v, seen.gap, seen.v_lead, *self._param_arrays(), rows, out)
 
 
 @dataclass(frozen=True)
@@ -411,59 +425,15 @@ class IDMParams:
                           f"headway)", UserWarning, stacklevel=3)
 
 
-@numba.njit(cache=True, inline="always")
-def _at(p, r):  # pragma: no cover - compiled
-    return p[r] if p.size > 1 else p[0]
-
-
-@numba.njit(cache=True)
-def _idm_rows(v, gap, v_seen, v_lead, a, b, time_gap, s0, v_desired, delta, rows, out):  # pragma: no cover
-    """:func:`idm_accel` of rows ``rows`` (own speed ``v`` now; ``gap``, ``v_seen`` and
-    ``v_lead`` as perceived), made finite and clipped as :meth:`_Model.act` does, into
-    ``out``; parameters are arrays of one value per row or one value for all."""
-    for r in rows:
-        ar = _at(a, r)
-        vr = v[r]
-        free = 1.0 - (max(vr, 0.0) / _at(v_desired, r)) ** _at(delta, r)
-        g = gap[r]
-        inter = 0.0
-        if math.isfinite(g):
-            dv = v_lead[r] - v_seen[r]
-            s_star = _at(s0, r) + max(0.0, vr * _at(time_gap, r) - vr * dv / (2.0 * math.sqrt(ar * _at(b, r))))
-            q = s_star / max(g, 1e-3)
-            inter = q * q
-        x = ar * (free - inter)
-        if math.isnan(x):
-            x = A_FLOOR
-        out[r] = min(max(x, A_FLOOR), A_CEIL)
-
-
 class IDM(_Model):
-    """Intelligent Driver Model (Treiber, Hennecke, Helbing 2000): :func:`idm_accel`, compiled
-    (:meth:`act_into`), so a batch of rows of a vector environment's IDM drivers costs one
-    call; tests/drivers/test_baselines.py checks it against :func:`idm_accel` to 1e-12."""
+    """Intelligent Driver Model (Treiber, Hennecke, Helbing 2000)."""
 
     params_type = IDMParams
     name = "idm"
+    _kernel_fields = ("a", "b", "time_gap", "s0", "v_desired", "delta")
 
-    def _param_arrays(self) -> tuple:
-        """The parameters as float arrays (one value per row, or one for all), made once: a
-        :class:`~acc_gym.drivers.slots.BaselineRows` group writes new rows into these very arrays."""
-        p = self.params
-        cached = self.__dict__.get("_arrays")
-        if cached is None or cached[0] is not p:
-            cached = self._arrays = (p, tuple(np.atleast_1d(np.asarray(getattr(p, name), dtype=float))
-                                              for name in ("a", "b", "time_gap", "s0", "v_desired", "delta")))
-        return cached[1]
-
-    def act_into(self, now, seen, rows: np.ndarray, out: np.ndarray) -> None:
-        """The finite, clipped output of rows ``rows`` (as :meth:`act` gives it) into ``out``."""
-        _idm_rows(now.v, seen.gap, seen.v, seen.v_lead, *self._param_arrays(), rows, out)
-
-    def _law(self, now, seen):
-        out = np.empty(np.shape(now.v)[-1])
-        self.act_into(now, seen, np.arange(out.size), out)
-        return out
+    def act_into(self, now, seen, rows, out):  # idm_accel, compiled
+        _k.idm_rows(now.v, seen.gap, seen.v, seen.v_lead, *self._param_arrays(), rows, out)
 
 
 @dataclass(frozen=True)
@@ -493,16 +463,14 @@ class ACC(_Model):
 
     params_type = ACCParams
     name = "acc"
+    _kernel_fields = ("k1", "k2", "k3", "time_gap", "s0", "v_set", "k_cruise", "a_max", "vehicle_length")
 
-    def _law(self, now, seen):
-        p = self.params
-        a = acc_accel(now.v, now.gap, now.v_lead - now.v, p.k1, p.k2, p.time_gap, p.s0, now.a_lead, p.k3)
-        if p.predecessors == 2 and now.gap2 is not None:
-            # x_d for the second vehicle: 2 x_d + l_v, i.e. s0 and h doubled plus one length
-            a2 = acc_accel(now.v, now.gap2, now.v_lead2 - now.v, p.k1, p.k2, 2.0 * p.time_gap,
-                           2.0 * p.s0 + p.vehicle_length, now.a_lead2, p.k3)
-            a = np.minimum(a, a2)
-        return np.minimum(a, free_accel(now.v, p.v_set, p.k_cruise, p.a_max))
+    def act_into(self, now, seen, rows, out):  # acc_accel (and Eq. 3's second vehicle), min free_accel, compiled
+        # the law reads the current scene (ACC has no reaction delay); for the second vehicle ahead
+        # x_d is 2 x_d + l_v, i.e. s0 and h doubled plus one length
+        two = self.params.predecessors == 2 and now.gap2 is not None
+        g2, vl2, al2 = (now.gap2, now.v_lead2, now.a_lead2) if two else (now.v, now.v, now.v)
+        _k.acc_rows(now.v, now.gap, now.v_lead, now.a_lead, g2, vl2, al2, two, *self._param_arrays(), rows, out)
 
 
 def cacc_params(**kw) -> ACCParams:

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from acc_gym.drivers.base import DelayBuffer, Observation, delay_steps
-from acc_gym.drivers.baselines import (ACC, GM, IDM, Fuzzy, FuzzyParams, Gipps, GippsParams, GMParams, IDMParams,
-                                       Newell, NewellParams, Pipes, PipesParams, Tyler, TylerParams, acc_accel,
-                                       cacc_params, fuzzy_accel, gipps_speed, gm_accel, idm_accel, mp_cacc_params,
+from acc_gym.drivers.baselines import (ACC, GM, IDM, ACCParams, Fuzzy, FuzzyParams, Gipps, GippsParams, GMParams,
+                                       IDMParams, Newell, NewellParams, Pipes, PipesParams, Tyler, TylerParams, acc_accel,
+                                       cacc_params, free_accel, fuzzy_accel, gipps_speed, gm_accel, idm_accel, mp_cacc_params,
                                        newell_speed, pipes_accel, tyler_accel)
 from acc_gym.simulation.profiles import SpeedProfile
 from acc_gym.simulation.rollout import simulate_column
@@ -39,34 +39,120 @@ def test_idm_hand_step():
     assert idm_accel(v, np.inf, 0.0, a, b, T, s0, v0) == pytest.approx(a * (1 - (v / v0) ** 4))
 
 
-def test_idm_driver_compiled_law_equals_the_array_function():
-    """IDM drivers run a compiled law (one call per batch of rows); it is idm_accel made
-    finite and clipped to [-20, 10] m/s^2, per row, with per-row or shared parameters."""
+def _finite_clipped(a):
+    return np.clip(np.nan_to_num(np.asarray(a, float), nan=-20.0, posinf=10.0, neginf=-20.0), -20.0, 10.0)
+
+
+def _reference_laws(dt):
+    """Each model's law as the array functions define it (the numpy form the models ran until
+    0.6), on the current scene ``now`` and the perceived one ``seen``."""
+    def gipps(p, now, seen):
+        return (gipps_speed(seen.v, seen.gap, seen.v_lead, p.a, p.b, p.b_hat, p.tau, p.v_desired, p.s0, p.theta)
+                - now.v) / dt
+
+    def gm(p, now, seen):
+        a = gm_accel(now.v, seen.gap + p.length_ahead, seen.v_lead - seen.v, p.c, p.m, p.l)
+        return np.minimum(np.where(np.isfinite(seen.gap), a, np.inf), free_accel(now.v, p.v_desired, p.k_free, p.a_max))
+
+    def fuzzy(p, now, seen):
+        a = fuzzy_accel(seen.v, seen.gap, seen.v_lead - seen.v, seen.a_lead, p.T, p.gamma, p.s0, p.h, p.level_width,
+                        p.max_level, p.step)
+        return np.minimum(np.where(np.isfinite(seen.gap), a, np.inf), free_accel(now.v, p.v_desired, p.k_free, p.a_max))
+
+    def pipes(p, now, seen):
+        a = np.where(np.isfinite(seen.gap), pipes_accel(seen.v_lead - seen.v, seen.gap, p.c), np.inf)
+        return np.minimum(a, free_accel(now.v, p.v_desired, p.k_free, p.a_max))
+
+    def newell(p, now, seen):
+        return (newell_speed(seen.gap, p.v_desired, p.c, p.r_min) - now.v) / dt
+
+    def tyler(p, now, seen):
+        a = np.where(np.isfinite(seen.gap), tyler_accel(seen.v, seen.gap, seen.v_lead - seen.v, p.c_v, p.c_s, p.c_t,
+                                                         p.s0), np.inf)
+        return np.minimum(a, free_accel(now.v, p.v_desired, p.k_free, p.a_max))
+
+    def idm(p, now, seen):
+        return idm_accel(now.v, seen.gap, seen.v_lead - seen.v, p.a, p.b, p.time_gap, p.s0, p.v_desired, p.delta)
+
+    def acc(p, now, seen):
+        a = acc_accel(now.v, now.gap, now.v_lead - now.v, p.k1, p.k2, p.time_gap, p.s0, now.a_lead, p.k3)
+        if p.predecessors == 2 and now.gap2 is not None:
+            a = np.minimum(a, acc_accel(now.v, now.gap2, now.v_lead2 - now.v, p.k1, p.k2, 2.0 * p.time_gap,
+                                        2.0 * p.s0 + p.vehicle_length, now.a_lead2, p.k3))
+        return np.minimum(a, free_accel(now.v, p.v_set, p.k_cruise, p.a_max))
+
+    return {"gipps": gipps, "gm": gm, "fuzzy": fuzzy, "pipes": pipes, "newell": newell, "tyler": tyler, "idm": idm,
+            "acc": acc}
+
+
+def _random_params(name, rng, n):
+    u = lambda lo, hi: rng.uniform(lo, hi, n)  # noqa: E731
+    return {
+        "gipps": [GippsParams(a=u(0.8, 3.0), b=u(-5.0, -2.0), b_hat=u(-6.0, -2.5), tau=u(0.3, 1.2), v_desired=u(8, 40),
+                              s0=u(0.0, 4.0)),
+                  GippsParams(theta=u(0.0, 1.0), v_desired=22.0)],
+        "gm": [GMParams(c=u(5.0, 30.0), m=rng.choice([0.0, 0.8, 1.0], n), l=rng.choice([1.0, 2.0, 2.5], n),
+                        v_desired=u(8, 40), k_free=u(0.2, 1.0), a_max=u(1.0, 3.0), length_ahead=u(0.0, 6.0))],
+        "fuzzy": [FuzzyParams(T=u(0.5, 2.0), gamma=u(1.0, 4.0), s0=u(0.0, 4.0), h=u(0.5, 2.5), level_width=u(2.0, 8.0),
+                              max_level=rng.choice([1.0, 3.0, 5.0], n), step=u(0.1, 0.6), v_desired=u(8, 40))],
+        "pipes": [PipesParams(c=u(0.1, 1.5), v_desired=u(8, 40), k_free=u(0.2, 1.0), a_max=u(1.0, 3.0))],
+        "newell": [NewellParams(c=u(0.2, 1.5), r_min=u(0.0, 5.0), v_desired=u(8, 40))],
+        "tyler": [TylerParams(c_v=u(0.2, 1.5), c_s=u(0.05, 0.5), c_t=u(0.5, 2.5), s0=u(0.0, 4.0), v_desired=u(8, 40))],
+        "idm": [IDMParams(a=u(0.5, 3.0), b=u(1.0, 4.0), time_gap=u(0.0, 2.5), s0=u(0.0, 4.0), v_desired=u(5, 40),
+                          delta=rng.choice([2.0, 4.0], n)), IDMParams(v_desired=22.0)],
+        "acc": [ACCParams(k1=u(0.0, 0.5), k2=u(0.0, 1.0), k3=u(0.0, 1.0), time_gap=u(0.5, 2.0), s0=u(0.0, 4.0),
+                          v_set=u(8, 40)), cacc_params(), mp_cacc_params(v_set=u(8, 40))],
+    }[name]
+
+
+@pytest.mark.parametrize("name", ["gipps", "gm", "fuzzy", "pipes", "newell", "tyler", "idm", "acc"])
+def test_compiled_laws_equal_the_array_functions(name):
+    """Every driver runs a compiled law (one call for a batch's rows); it equals the array
+    functions' law, made finite and clipped to [-20, 10] m/s^2, to 1e-12 -- per-row and shared
+    parameters, the current and the perceived scene apart, nothing ahead, zero gaps and speeds."""
+    from acc_gym.drivers.baselines import MODELS
+
     rng = np.random.default_rng(7)
-    n = 400
-    v = rng.uniform(0.0, 45.0, n)
-    v[:3] = 0.0
-    gap = np.where(rng.random(n) < 0.2, np.inf, rng.uniform(0.0, 150.0, n))
-    gap[:5] = [0.0, 1e-6, 0.5, np.inf, 2e-3]
-    v_lead = rng.uniform(0.0, 45.0, n)
-    params = IDMParams(a=rng.uniform(0.5, 3.0, n), b=rng.uniform(1.0, 4.0, n), time_gap=rng.uniform(0.0, 2.5, n),
-                       s0=rng.uniform(0.0, 4.0, n), v_desired=rng.uniform(5.0, 40.0, n), delta=rng.choice([2.0, 4.0], n))
-    obs = Observation.build(v, 0.0, gap, v_lead, 0.0)
-    with np.errstate(all="ignore"):
-        ref = idm_accel(v, gap, v_lead - v, params.a, params.b, params.time_gap, params.s0, params.v_desired,
-                        params.delta)
-    ref = np.clip(np.nan_to_num(ref, nan=-20.0, posinf=10.0, neginf=-20.0), -20.0, 10.0)
-    out = IDM(params, n=n).act(obs)
-    np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-12)
-    assert (out == -20.0).sum() >= 3 and (ref == -20.0).sum() == (out == -20.0).sum()  # the floor is reached
-    # shared parameters (one value for every row) give the same as the same values per row
+    n, dt = 400, 0.2
+    ref_law = _reference_laws(dt)[name]
+
+    def scene():
+        v = rng.uniform(0.0, 45.0, n)
+        v[:3] = 0.0
+        gap = np.where(rng.random(n) < 0.2, np.inf, rng.uniform(0.0, 150.0, n))
+        gap[:5] = [0.0, 1e-6, 0.5, np.inf, 2e-3]
+        gap2 = np.where(rng.random(n) < 0.3, np.inf, gap + rng.uniform(5.0, 60.0, n))
+        return Observation.build(v, rng.uniform(-3, 2, n), gap, rng.uniform(0.0, 45.0, n), rng.uniform(-4, 2, n),
+                                 gap2, rng.uniform(0.0, 45.0, n), rng.uniform(-4, 2, n))
+
+    now, seen = scene(), scene()
+    for params in _random_params(name, rng, n):
+        model = MODELS[name](params, n=n, dt=dt)
+        with np.errstate(all="ignore"):
+            ref = _finite_clipped(ref_law(params, now, seen))
+        out = model._law(now, seen)
+        np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-12, err_msg=name)
+        assert (out == ref).mean() > 0.9  # most entries are the same bits
+        rows = np.array([3, 7, 250])
+        part = np.full(n, 99.0)
+        model.act_into(now, seen, rows, part)
+        np.testing.assert_array_equal(part[rows], out[rows])
+        assert np.count_nonzero(part == 99.0) == n - rows.size  # only the rows asked for
+
+
+def test_kernel_clip_bounds_are_the_models():
+    from acc_gym.drivers import _baseline_kernels, baselines
+
+    assert (_baseline_kernels.A_FLOOR, _baseline_kernels.A_CEIL) == (baselines.A_FLOOR, baselines.A_CEIL)
+
+
+def test_idm_driver_shared_parameters_equal_per_row_ones():
+    rng = np.random.default_rng(3)
+    n = 50
+    obs = Observation.build(rng.uniform(0, 40, n), 0.0, rng.uniform(0, 100, n), rng.uniform(0, 40, n), 0.0)
     one = IDM(IDMParams(v_desired=22.0), n=n).act(obs)
     every = IDM(IDMParams(v_desired=np.full(n, 22.0), a=np.full(n, 1.5)), n=n).act(obs)
     np.testing.assert_array_equal(one, every)
-    # act_into writes only the rows asked for
-    out2 = np.full(n, 99.0)
-    IDM(params, n=n).act_into(obs, obs, np.array([3, 7]), out2)
-    assert out2[3] == out[3] and out2[7] == out[7] and np.count_nonzero(out2 == 99.0) == n - 2
 
 
 def test_other_laws_hand_steps():
