@@ -33,7 +33,7 @@ from dataclasses import fields
 import numpy as np
 
 from acc_gym.drivers.base import Observation
-from acc_gym.drivers.baselines import A_CEIL, A_FLOOR, MODELS
+from acc_gym.drivers.baselines import MODELS
 from acc_gym.drivers.mpc import MPCDriver, MPCSettings
 
 
@@ -231,9 +231,9 @@ class BaselineRows:
     Each group (a model class and the row-invariant fields that split it: ACC's
     ``predecessors``, Gipps's ``theta=None``) holds one model over all ``n`` rows for the
     life of the holder; assigning a row writes its parameters into that model's arrays in
-    place (no rebuild when scenes restart, which in a vector env is every step), and the
-    law runs over all ``n`` rows with only the group's rows kept (rows of other groups hold
-    valid parameters of the group's first member, and their outputs are discarded)."""
+    place (no rebuild when scenes restart, which in a vector env is every step), and its
+    compiled law (``act_into``, :mod:`acc_gym.drivers._baseline_kernels`) runs over the
+    group's rows only, in one call per step."""
 
     _FIELDS = tuple(f.name for f in fields(Observation))
 
@@ -310,15 +310,8 @@ class BaselineRows:
             back = np.maximum(clock - self._delay, 0) % size
             seen = Observation(**{name: (self._ring[i, every, back] if i in present else None)
                                   for i, name in enumerate(self._FIELDS)})
-        for model, grp, delayed in groups:
-            act_into = getattr(model, "act_into", None)
-            if act_into is not None:  # a compiled law: only the group's rows, written finite and clipped
-                act_into(obs, seen if delayed else obs, grp, out)
-                continue
-            with np.errstate(all="ignore"):  # rows outside the group may hold any state; their outputs are dropped
-                a = np.asarray(model._law(obs, seen if delayed else obs), dtype=float)
-            a = a[grp]
-            out[grp] = np.clip(np.nan_to_num(a, nan=A_FLOOR, posinf=A_CEIL, neginf=A_FLOOR), A_FLOOR, A_CEIL)
+        for model, grp, delayed in groups:  # each model's compiled law: the group's rows only, finite and clipped
+            model.act_into(obs, seen if delayed else obs, grp, out)
 
 
 # the cruise of an idle row (besides its speed, v_desired): rows of Observation's field order
