@@ -200,10 +200,7 @@ class _Model:
 
     def act(self, obs: Observation) -> np.ndarray:
         obs.validate(self.n)
-        seen = self._delay.push(obs)
-        out = self._law(obs, seen)
-        return np.clip(np.nan_to_num(np.asarray(out, dtype=float), nan=A_FLOOR, posinf=A_CEIL, neginf=A_FLOOR),
-                       A_FLOOR, A_CEIL)
+        return self._law(obs, self._delay.push(obs))  # finite and clipped by the compiled law
 
     # the parameters the model's compiled law (acc_gym.drivers._baseline_kernels) takes, in its order
     _kernel_fields: tuple[str, ...] = ()
@@ -225,6 +222,7 @@ class _Model:
         raise NotImplementedError  # pragma: no cover
 
     def _law(self, now: Observation, seen: Observation) -> np.ndarray:
+        """Every row's output, finite and clipped to ``[A_FLOOR, A_CEIL]`` (:meth:`act_into`)."""
         out = np.empty(np.shape(now.v)[-1])
         self.act_into(now, seen, np.arange(out.size), out)
         return out

@@ -314,7 +314,6 @@ class BaselineRows:
             model.act_into(obs, seen if delayed else obs, grp, out)
 
 
-# the cruise of an idle row (besides its speed, v_desired): rows of Observation's field order
 # an idle row's steady cruise with nothing ahead, besides its speed (its v_desired)
 _CRUISE = {"a": 0.0, "gap": np.inf, "v_lead": 0.0, "a_lead": 0.0, "gap2": np.inf, "v_lead2": 0.0, "a_lead2": 0.0,
            "stop_gap": np.inf}

@@ -7,9 +7,9 @@ import pytest
 
 from acc_gym.drivers.base import DelayBuffer, Observation, delay_steps
 from acc_gym.drivers.baselines import (ACC, GM, IDM, ACCParams, Fuzzy, FuzzyParams, Gipps, GippsParams, GMParams,
-                                       IDMParams, Newell, NewellParams, Pipes, PipesParams, Tyler, TylerParams, acc_accel,
-                                       cacc_params, free_accel, fuzzy_accel, gipps_speed, gm_accel, idm_accel, mp_cacc_params,
-                                       newell_speed, pipes_accel, tyler_accel)
+                                       IDMParams, Newell, NewellParams, Pipes, PipesParams, Tyler, TylerParams,
+                                       acc_accel, cacc_params, free_accel, fuzzy_accel, gipps_speed, gm_accel,
+                                       idm_accel, mp_cacc_params, newell_speed, pipes_accel, tyler_accel)
 from acc_gym.simulation.profiles import SpeedProfile
 from acc_gym.simulation.rollout import simulate_column
 
