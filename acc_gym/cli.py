@@ -303,8 +303,8 @@ def _main(argv=None) -> int:
 def _add_campaign_parser(sub) -> None:
     p = sub.add_parser("campaign", help="run or resume a Monte Carlo campaign of a suite's traffic "
                                         "(needs pyarrow; Dask for --scheduler)")
-    p.add_argument("--suite", required=True, help="a suite name (singlelane-v2, carfollowing-v1, ncap-v1, "
-                                                   "malicious-v2)")
+    p.add_argument("--suite", required=True, help="a suite name (singlelane-v3, carfollowing-v1, ncap-v1, "
+                                                   "malicious-v3)")
     p.add_argument("--hours", type=float, required=True, help="hours of traffic to simulate")
     p.add_argument("--controller", required=True, help="a built-in controller, module:attribute or a saved model")
     p.add_argument("--out", required=True, help="output directory (resumed if it holds this campaign)")
@@ -386,7 +386,7 @@ def _add_leaderboard_parser(sub) -> None:
 
     p = sub.add_parser("leaderboard", help="score controllers on versioned suites and rank them")
     p.add_argument("--suite", action="append", default=None,
-                   help="a suite (carfollowing-v1, malicious-v2, ncap-v1, singlelane-v2); repeat or "
+                   help="a suite (carfollowing-v1, malicious-v3, ncap-v1, singlelane-v3); repeat or "
                         "comma-separate for several (default: all four)")
     p.add_argument("--split", default="test",
                    help="dev, test or private (default test): develop on dev, publish on test, rank officially "

@@ -1,6 +1,6 @@
 """Speed of whole Monte Carlo campaigns: scenarios per second, end to end.
 
-A campaign of ``--hours`` 1 of ``singlelane-v2``'s test traffic (about 270 scenarios,
+A campaign of ``--hours`` 1 of ``singlelane-v3``'s test traffic (about 270 scenarios,
 with the linear ACC, ``--chunk-size`` 5) is run into a fresh directory with
 :func:`acc_gym.campaigns.run_campaign` -- planning, episodes, Parquet files and summary
 included:
@@ -42,7 +42,7 @@ def campaign_rate(args, out: Path, **backend) -> tuple[float, int]:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--suite", default="singlelane-v2")
+    parser.add_argument("--suite", default="singlelane-v3")
     parser.add_argument("--hours", type=float, default=1.0)
     parser.add_argument("--controller", default="acc")
     parser.add_argument("--chunk-size", type=int, default=5)

@@ -1,9 +1,9 @@
 """Monte Carlo campaigns: hours of a suite's traffic with one controller, on this machine or a Dask cluster.
 
     from acc_gym.campaigns import run_campaign, load_campaign, summarise_campaign
-    summary = run_campaign("singlelane-v2", hours=1.0, controller="acc", out_dir="runs/acc", workers=4)
+    summary = run_campaign("singlelane-v3", hours=1.0, controller="acc", out_dir="runs/acc", workers=4)
 
-(also ``acc-gym campaign --suite singlelane-v2 --hours 1 --controller acc --out runs/acc``).
+(also ``acc-gym campaign --suite singlelane-v3 --hours 1 --controller acc --out runs/acc``).
 
 * :mod:`~acc_gym.campaigns.plan`: which scenarios (index ``i`` of the suite's split, drawn
   from ``default_rng([i, root_seed])``), with which seeds, in which chunks;

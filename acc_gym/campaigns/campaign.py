@@ -206,7 +206,7 @@ def run_campaign(suite, hours: float, controller: str, out_dir, *, split: str = 
                  max_chunks: int | None = None, confidence: float = 0.95, on_chunk=None) -> dict:
     """Run (or resume) a campaign of ``hours`` of ``suite``'s traffic with ``controller``; return its summary.
 
-    ``suite``: a registered name (``"singlelane-v2"``) or a suite object; ``split``: ``"dev"`` or
+    ``suite``: a registered name (``"singlelane-v3"``) or a suite object; ``split``: ``"dev"`` or
     ``"test"``; ``root_seed``: default the split's own (see :mod:`acc_gym.campaigns.plan`);
     ``workers``: local processes (1: this process), or the ``LocalCluster`` size with
     ``scheduler="local"``; ``scheduler``: a Dask scheduler address, ``"local"`` or a

@@ -125,7 +125,10 @@ from acc_gym.vehicle import VehicleParams, accel_lower
 # with the weights divided by max(1, q1) (same minimiser), so the slack's exact penalty
 # stays above the multipliers of a slow driver's speed-scaled q1 (which took slack 300 m
 # before a stopped car and braked at the vehicle's limit). Populations are unchanged.
-MODEL_VERSION = 4
+# 5 (acc-gym 0.7.0): the driver's law is unchanged; sampled populations' distance weight
+# q1n is log-uniform in [0.02, 2.8] (was [0.04, 2.8]): paper 001's Table A3 braking-start
+# medians hold in every speed band (issue 37; population.py says how the range was chosen).
+MODEL_VERSION = 5
 
 
 class Mode(IntEnum):

@@ -2,8 +2,8 @@
 test split, for tuning a controller on one and ranking it on the other.
 
     from acc_gym.suites import get_suite, list_suites
-    list_suites()                        # ['carfollowing-v1', 'malicious-v2', 'ncap-v1', 'singlelane-v2']
-    s = get_suite("singlelane-v2")
+    list_suites()                        # ['carfollowing-v1', 'malicious-v3', 'ncap-v1', 'singlelane-v3']
+    s = get_suite("singlelane-v3")
     s.episodes("dev")                    # the fixed list (about one hour of paper 004's traffic)
     s.scenario(1234, "test")             # the unbounded stream, a pure function of (index, split)
     s.hash("test")                       # what a leaderboard records to say what it ran
@@ -13,11 +13,11 @@ suite              what                                            episodes per 
 =================  ==============================================  ====================  ==================
 carfollowing-v1    paper 003's test at 60 / 90 / 120 km/h,          15 (5 lead drivers    CarFollowing-v0
                    each seed another human-like lead                 per speed)
-singlelane-v2      paper 004's 22 configurations by occurrence      ~1 simulated hour     SingleLane-v0
+singlelane-v3      paper 004's 22 configurations by occurrence      ~1 simulated hour     SingleLane-v0
                    rate, typical human-like MPC drivers              (~275 scenarios)
 ncap-v1            the 24 CCRs / CCRm / CCRb tests with test-track  48 (each test twice)  NCAP-v0
                    deviations of speed and distance
-malicious-v2       malicious MPC drivers in cut-in and braking      36 (4 per config.)    SingleLane-v0
+malicious-v3       malicious MPC drivers in cut-in and braking      36 (4 per config.)    SingleLane-v0
                    configurations, plus the hard CCRb tests
 =================  ==============================================  ====================  ==================
 
@@ -52,6 +52,13 @@ samples the distance weight differently (:mod:`acc_gym.drivers.population`), so 
 episodes no longer build to what v1 recorded. They were not re-pinned in place: the
 same (id, params, seed) list under new seeds is ``singlelane-v2`` / ``malicious-v2``.
 Results on v1 (acc-gym <= 0.4.0) are not comparable with results on v2.
+
+**Retired: singlelane-v2 and malicious-v2** (acc-gym 0.7.0), for the same reason: driver
+model 5 draws the surrounding drivers' distance weight from [0.02, 2.8] instead of [0.04,
+2.8] (issue 37), so their episodes no longer build to what v2 recorded. The same lists
+under new seeds are ``singlelane-v3`` / ``malicious-v3``; carfollowing-v1 and ncap-v1 hold
+no sampled MPC driver and are unchanged. Asking for a retired suite names its successor
+(:data:`RETIRED`).
 """
 
 from __future__ import annotations
@@ -74,9 +81,18 @@ FILE_FORMAT = "acc_gym.suite/1"
 # sha256 of each released suite's definition (all splits): the data files must hash to these
 PINNED = {
     "carfollowing-v1": "96e543fba1374302c1df0b3826134bcd504e7de67cc55bf5e0691058f750164c",
-    "malicious-v2": "72912bb95897923444f1af6e5905de1d4789e8a9e05a0fe8a510e98320237e3b",
+    "malicious-v3": "bc432ec9ec1c1c13874b340a5611d3cc9de3ab0812bcd0c3ae6d699172ce6cda",
     "ncap-v1": "4c807fa8938850c3a408e05b6d2086de63d1fbeb262c1271af48867ec8346d89",
-    "singlelane-v2": "52c5cfeb39b83adac3e15dfb9691dd36a80e08f2cc726d4af04a61e9bdc123e5",
+    "singlelane-v3": "32cfc23340c76fbca1f5b5a4abba66ee80fc7534c074b93f8f7f2ca48cae1009",
+}
+# Retired suites: name -> (the release that retired it, its successor, why)
+RETIRED = {
+    "singlelane-v1": ("0.5.0", "singlelane-v3", "driver model 3 samples the surrounding drivers differently"),
+    "malicious-v1": ("0.5.0", "malicious-v3", "driver model 3 samples the surrounding drivers differently"),
+    "singlelane-v2": ("0.7.0", "singlelane-v3", "driver model 5 samples the surrounding drivers' distance weight "
+                                                "differently"),
+    "malicious-v2": ("0.7.0", "malicious-v3", "driver model 5 samples the surrounding drivers' distance weight "
+                                              "differently"),
 }
 
 
@@ -85,12 +101,12 @@ def _templates() -> dict[str, Suite]:
     return {s.name: s for s in (
         Suite("carfollowing-v1", 1, "carfollowing", "acc_gym/CarFollowing-v0", generators.carfollowing, count=15,
               description="paper 003's car-following test at 60, 90 and 120 km/h, five lead drivers each"),
-        Suite("malicious-v2", 2, "malicious", "acc_gym/SingleLane-v0", generators.malicious, count=36,
+        Suite("malicious-v3", 3, "malicious", "acc_gym/SingleLane-v0", generators.malicious, count=36,
               description="malicious MPC drivers cutting in and braking hard, and the 6 m/s^2 CCRb tests"),
         Suite("ncap-v1", 1, "ncap", "acc_gym/NCAP-v0", generators.ncap, count=48,
               description="the Euro NCAP-style CCRs / CCRm / CCRb catalogue, each test twice with test-track "
                           "deviations"),
-        Suite("singlelane-v2", 2, "singlelane", "acc_gym/SingleLane-v0", generators.singlelane, hours=1.0,
+        Suite("singlelane-v3", 3, "singlelane", "acc_gym/SingleLane-v0", generators.singlelane, hours=1.0,
               description="one hour of paper 004's single-lane traffic, configurations by occurrence rate"),
     )}
 
@@ -159,6 +175,10 @@ def _load(name: str) -> Suite:
 
 def get_suite(name: str) -> Suite:
     """The suite ``name`` (its definition read from the shipped data file)."""
+    if isinstance(name, str) and name in RETIRED:
+        release, successor, why = RETIRED[name]
+        raise ValueError(f"suite {name!r} was retired in acc-gym {release} ({why}; its episodes no longer build to "
+                         f"what it recorded): use {successor!r}, or an acc-gym release before {release}")
     if not isinstance(name, str) or name not in _templates():
         raise ValueError(f"unknown suite {name!r}; known: {list_suites()}")
     return _load(name)
@@ -171,5 +191,5 @@ def template(name: str) -> Suite:
     return _templates()[name]
 
 
-__all__ = ["PINNED", "SPLITS", "Suite", "data_path", "definition_hash", "derive_root_seed", "get_suite", "list_suites",
+__all__ = ["PINNED", "RETIRED", "SPLITS", "Suite", "data_path", "definition_hash", "derive_root_seed", "get_suite", "list_suites",
            "read_definition", "template"]

@@ -9,7 +9,7 @@ speed profiles in :func:`acc_gym.scenarios.build`) is drawn from ``rng``.
 
 * ``carfollowing-v1`` (paper 003's test): ids ``carfollowing/60``, ``/90``, ``/120`` in
   turn (``index % 3``); each seed is another scripted human-like lead driver.
-* ``singlelane-v2`` (paper 004's traffic): a configuration drawn by occurrence rate
+* ``singlelane-v3`` (paper 004's traffic): a configuration drawn by occurrence rate
   among the 22 paper configurations (``in_paper``), as
   :func:`acc_gym.scenarios.traffic_hour` does -- rates drawn from their laws, then one
   pick proportional to them -- but from the per-index generator, so each index is
@@ -23,7 +23,7 @@ speed profiles in :func:`acc_gym.scenarios.build`) is drawn from ``rng``.
   4 s time-to-collision from the actual speeds. Durations keep their nominal values
   (they leave seconds of margin). The catalogue id is kept; the deviations are in
   ``params``. So dev and test hold the same tests, run slightly differently.
-* ``malicious-v2``: surrounding MPC drivers at the limits (``drivers="malicious"``: short
+* ``malicious-v3``: surrounding MPC drivers at the limits (``drivers="malicious"``: short
   time gaps, late hard braking, high jerk) in the single-lane configurations where a
   vehicle enters the ego's path or the vehicle ahead must brake -- cut-ins (SV-POV, and
   POV2 cutting in front of the POV) and approaches of the POV to a slower POV2 -- plus

@@ -28,7 +28,7 @@ def test_rows_hold_the_suites_scenarios_and_seeds(reference):
 
 
 def test_scenario_at_is_order_independent_and_follows_the_root():
-    suite = get_suite("singlelane-v2")
+    suite = get_suite("singlelane-v3")
     root = suite.root_seed("dev")
     forward = [scenario_at(suite, i, "dev", 99) for i in range(6)]
     backward = [scenario_at(suite, i, "dev", 99) for i in reversed(range(6))][::-1]

@@ -15,7 +15,7 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="us
 # 12 hours: about a minute uninterrupted on 2 cores (3 hours took 16 s, so on a loaded machine the
 # campaign could end before the signal; the tests interrupt it within seconds of its workers starting)
 COMMAND = [sys.executable, "-c", "import sys; from acc_gym.cli import main; sys.exit(main(sys.argv[1:]))",
-           "campaign", "--suite", "singlelane-v2", "--hours", "12", "--controller", "acc", "--workers", "2"]
+           "campaign", "--suite", "singlelane-v3", "--hours", "12", "--controller", "acc", "--workers", "2"]
 
 
 def _as_from_a_terminal():

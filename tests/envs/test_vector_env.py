@@ -138,7 +138,7 @@ def test_carfollowing_v2v_equals_single_envs_through_autoresets():
     assert ended >= 2 and resets >= 2
 
 
-@pytest.mark.parametrize("kwargs", [{}, {"drivers": "malicious", "v2v": True}], ids=["typical", "malicious-v2v"])
+@pytest.mark.parametrize("kwargs", [{}, {"drivers": "malicious", "v2v": True}], ids=["typical", "malicious-v3v"])
 def test_singlelane_mpc_drivers_equal_single_envs(kwargs):
     """MPC drivers of all scenes solved in one batch (scenes restarting at different times)
     give the numbers of each scene alone."""

@@ -217,7 +217,7 @@ def test_first_observations_identify_test_episodes_but_no_private_one():
     finally:
         sys.path.pop(0)
     identified_on_test = 0
-    for name in ("ncap-v1", "malicious-v2", "carfollowing-v1"):
+    for name in ("ncap-v1", "malicious-v3", "carfollowing-v1"):
         suite = get_suite(name)
         table = first_observation_table(suite)
         test = suite.episodes("test")

@@ -206,7 +206,7 @@ def builtins_run(importable_helpers):
 
     names = default_controllers()
     assert "ppo-acc" in names and "acc" in names and "idm" in names
-    return names, run_leaderboard(["malicious-v2", "carfollowing-v1"], "test", [*names, "cheats:FullThrottle"],
+    return names, run_leaderboard(["malicious-v3", "carfollowing-v1"], "test", [*names, "cheats:FullThrottle"],
                                   episodes=2, workers=2)
 
 

@@ -155,7 +155,7 @@ def test_missing_values_count_in_no_mean():
 def test_a_full_size_board_gets_every_interval_and_comparison():
     """10 controllers x 365 episodes over four suites (speed is not tested here)."""
     rng = np.random.default_rng(3)
-    big = {"carfollowing-v1": 15, "malicious-v2": 40, "ncap-v1": 40, "singlelane-v2": 270}
+    big = {"carfollowing-v1": 15, "malicious-v3": 40, "ncap-v1": 40, "singlelane-v3": 270}
     runs = [[record(suite, k, rng.uniform(0, 100), collision=rng.random() < 0.02) for suite, n in big.items()
              for k in range(n)] for _ in range(10)]
     entries = [{"name": f"c{i}", "status": "ok", "summary": summarise_controller(eps, list(big)), "episodes": eps}
@@ -172,7 +172,7 @@ def test_the_generator_is_seeded_by_name_and_the_global_one_is_untouched():
     a = u.bootstrap_mean_interval(np.arange(30.0), name="ncap-v1")
     assert np.array_equal(np.random.get_state()[1], before)  # the global generator is not used
     assert u.bootstrap_mean_interval(np.arange(30.0), name="ncap-v1") == a
-    assert u.bootstrap_mean_interval(np.arange(30.0), name="malicious-v2") != a
+    assert u.bootstrap_mean_interval(np.arange(30.0), name="malicious-v3") != a
 
 
 # -- paired comparisons -----------------------------------------------------------------------------

@@ -16,7 +16,7 @@ def entries(scenarios):
     return [entry(s) for s in scenarios]
 
 
-@pytest.mark.parametrize("name", ["carfollowing-v1", "ncap-v1", "malicious-v2"])
+@pytest.mark.parametrize("name", ["carfollowing-v1", "ncap-v1", "malicious-v3"])
 def test_private_episodes_are_a_pure_function_of_secret_and_suite(name):
     s = get_suite(name)
     a = entries(private.private_episodes(s, SECRET))
@@ -35,7 +35,7 @@ def test_private_episodes_are_a_pure_function_of_secret_and_suite(name):
 
 
 def test_the_hours_sized_suite_draws_about_its_hours():
-    s = get_suite("singlelane-v2")
+    s = get_suite("singlelane-v3")
     eps = private.private_episodes(s, SECRET)
     total = sum(sc.duration for sc in eps)
     assert total >= 3600.0 and total - max(sc.duration for sc in eps) < 3600.0

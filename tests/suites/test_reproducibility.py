@@ -58,7 +58,7 @@ def test_stored_parameters_are_canonical_and_episodes_build_from_them():
     assert str(canonical_params({"c": -1e-9})["c"]) == "0.0"
 
 
-@pytest.mark.parametrize("name", ["singlelane-v2", "carfollowing-v1"])
+@pytest.mark.parametrize("name", ["singlelane-v3", "carfollowing-v1"])
 def test_content_digest_ignores_last_bit_differences_of_derived_values(name):
     """The built scenarios' digest (drivers' sampled parameters, speed profiles, positions)
     does not move when every derived float moves by a few ulps."""
@@ -89,7 +89,7 @@ def perturb_sampled_drivers(d: dict, rng: np.random.Generator) -> dict:
 @pytest.mark.parametrize("name", list_suites())
 def test_content_digest_of_every_suite_ignores_last_bit_differences_of_sampled_drivers(name):
     """Every suite, including the ones whose other derived values are exempt: ncap-v1 and
-    malicious-v2 convert stored km/h values to m/s (``v / 3.6``), a correctly rounded IEEE-754
+    malicious-v3 convert stored km/h values to m/s (``v / 3.6``), a correctly rounded IEEE-754
     division of the stored canonical value, so bit-identical on every machine; some of those
     quotients sit exactly on a 6-decimal rounding midpoint (e.g. 14.0854575), so moving them by
     an ulp by hand would move the digest, but no machine can. What can differ between CPUs is

@@ -20,9 +20,9 @@ from acc_gym.suites import (
 from acc_gym.suites.generators import MALICIOUS_NCAP, MALICIOUS_SINGLELANE
 from acc_gym.suites.suite import canonical_scenario, definition_hash
 
-NAMES = ["carfollowing-v1", "malicious-v2", "ncap-v1", "singlelane-v2"]
-ENV_IDS = {"carfollowing-v1": "acc_gym/CarFollowing-v0", "malicious-v2": "acc_gym/SingleLane-v0",
-           "ncap-v1": "acc_gym/NCAP-v0", "singlelane-v2": "acc_gym/SingleLane-v0"}
+NAMES = ["carfollowing-v1", "malicious-v3", "ncap-v1", "singlelane-v3"]
+ENV_IDS = {"carfollowing-v1": "acc_gym/CarFollowing-v0", "malicious-v3": "acc_gym/SingleLane-v0",
+           "ncap-v1": "acc_gym/NCAP-v0", "singlelane-v3": "acc_gym/SingleLane-v0"}
 
 
 def test_list_and_attributes():
@@ -37,8 +37,18 @@ def test_list_and_attributes():
         assert s.root_seed("dev") != s.root_seed("test")
 
 
+@pytest.mark.parametrize("old, new", [("singlelane-v2", "singlelane-v3"), ("malicious-v2", "malicious-v3"),
+                                      ("singlelane-v1", "singlelane-v3")])
+def test_a_retired_suite_names_its_successor(old, new):
+    from acc_gym.suites import RETIRED, list_suites
+
+    assert old in RETIRED and old not in list_suites() and new in list_suites()
+    with pytest.raises(ValueError, match=rf"'{old}' was retired in acc-gym .*use '{new}'"):
+        get_suite(old)
+
+
 def test_unknown_suite_and_split_are_named():
-    with pytest.raises(ValueError, match=r"'nope-v9'.*carfollowing-v1.*singlelane-v2"):
+    with pytest.raises(ValueError, match=r"'nope-v9'.*carfollowing-v1.*singlelane-v3"):
         get_suite("nope-v9")
     s = get_suite("ncap-v1")
     for call in (lambda: s.root_seed("train"), lambda: s.scenario(0, "train"), lambda: s.episodes("train"),
@@ -64,7 +74,7 @@ def test_scenario_is_a_pure_function_of_index_and_split(name):
 
 
 def test_scenario_randomness_comes_from_index_and_root_seed():
-    s = get_suite("singlelane-v2")
+    s = get_suite("singlelane-v3")
     rng = np.random.default_rng([7, s.root_seed("dev")])
     assert canonical_scenario(s.generator(7, rng)).to_json() == s.scenario(7, "dev").to_json()
 
@@ -88,7 +98,7 @@ def test_stream_hours_counts_durations_from_index_zero():
 
 
 def test_singlelane_is_an_hour_of_paper_configurations():
-    s = get_suite("singlelane-v2")
+    s = get_suite("singlelane-v3")
     episodes = s.episodes("test")
     assert sum(e.duration for e in episodes) >= 3600.0
     assert sum(e.duration for e in episodes[:-1]) < 3600.0  # and not more than needed
@@ -109,7 +119,7 @@ def test_carfollowing_and_ncap_contents():
 
 
 def test_malicious_uses_malicious_drivers():
-    episodes = get_suite("malicious-v2").episodes("test")
+    episodes = get_suite("malicious-v3").episodes("test")
     ids = {e.id for e in episodes}
     assert ids == set(MALICIOUS_SINGLELANE) | set(MALICIOUS_NCAP)
     for e in episodes:
@@ -122,7 +132,7 @@ def test_malicious_uses_malicious_drivers():
 
 
 def test_episodes_rebuild_the_recorded_entries():
-    s = get_suite("malicious-v2")
+    s = get_suite("malicious-v3")
     for e, sc in zip(s.to_dict()["episodes"]["dev"], s.episodes("dev")):
         assert (sc.id, sc.params, sc.seed, sc.drivers) == (e["id"], e["params"], e["seed"], e["drivers"])
 
@@ -209,7 +219,7 @@ def test_an_edited_data_file_with_a_recomputed_sha256_is_refused_by_name(tmp_pat
 
 
 def test_to_dict_is_json_safe_and_complete():
-    d = get_suite("singlelane-v2").to_dict()
+    d = get_suite("singlelane-v3").to_dict()
     assert set(d) >= {"name", "version", "family", "env_id", "root_seeds", "episodes"}
     assert json.loads(json.dumps(d, allow_nan=False)) == d
     e = d["episodes"]["test"][0]
