@@ -1,7 +1,8 @@
 """Gymnasium environments: ``gymnasium.make("acc_gym/CarFollowing-v0")`` and friends.
 
 Ids (:data:`~acc_gym.envs.registration.ENV_IDS`): ``acc_gym/CarFollowing-v0``,
-``acc_gym/SingleLane-v0``, ``acc_gym/NCAP-v0``, ``acc_gym/StopAndGo-v0`` -- one
+``acc_gym/SingleLane-v0``, ``acc_gym/NCAP-v0``, ``acc_gym/StopAndGo-v0``, and their ``-v1``
+versions (the safety-margin features in the observation, :class:`MarginReward`) -- one
 :class:`ACCEnv` class configured by an :class:`EnvConfig`; ``gymnasium.make_vec(id,
 num_envs, vectorization_mode="vector_entry_point")`` gives the native
 :class:`ACCVectorEnv`. The classes load lazily so that registering stays cheap.
@@ -13,6 +14,7 @@ register_envs()
 
 _LAZY = {"ACCEnv": "acc_gym.envs.acc_env", "ACCVectorEnv": "acc_gym.envs.vector", "EnvConfig": "acc_gym.envs.config",
          "ScenarioSampler": "acc_gym.envs.config", "CriteriaReward": "acc_gym.envs.reward",
+         "MarginReward": "acc_gym.envs.reward",
          "StepIndicators": "acc_gym.envs.reward"}
 
 

@@ -9,9 +9,10 @@ import gymnasium as gym
 from gymnasium import spaces
 
 from acc_gym.envs import _kernel as _K
-from acc_gym.envs.config import EnvConfig, ScenarioSampler
+from acc_gym.envs.config import EnvConfig, ScenarioSampler, mixture
 from acc_gym.envs.core import EpisodeBatch
-from acc_gym.envs.reward import CriteriaReward
+from acc_gym.envs.observation import feature_bounds
+from acc_gym.envs.reward import CriteriaReward, MarginReward
 from acc_gym.evaluation.scoring import score_episode
 from acc_gym.scenarios.registry import build
 from acc_gym.scenarios.spec import Scenario
@@ -30,7 +31,17 @@ def observation_space(config: EnvConfig) -> spaces.Box:
     if config.v2v:
         low += [-A_BOUND, 0.0, -V_MAX, 0.0]
         high += [A_BOUND, r, V_MAX, 1.0]
+    if config.version >= 1:  # the safety-margin features (acc_gym.envs.observation)
+        f_low, f_high = feature_bounds(config.v2v)
+        low += f_low.tolist()
+        high += f_high.tolist()
     return spaces.Box(np.array(low, dtype=np.float32), np.array(high, dtype=np.float32), dtype=np.float32)
+
+
+def default_reward(config: EnvConfig):
+    """The reward an env uses without ``reward_fn``: :class:`CriteriaReward` for version 0,
+    :class:`MarginReward` from version 1."""
+    return MarginReward() if config.version >= 1 else CriteriaReward()
 
 
 def action_to_accel(action: np.ndarray, config: EnvConfig) -> np.ndarray:
@@ -87,10 +98,15 @@ def check_actions(actions, shape: tuple) -> np.ndarray:
 
 def make_config(config, overrides: dict, default_scenarios=None) -> EnvConfig:
     """The config: ``config`` (an EnvConfig, a dict or None) with ``overrides``; an id's
-    ``default_scenarios`` apply only when neither names the scenarios."""
+    ``default_scenarios`` (ids or families, or a dict of them with their shares,
+    :func:`~acc_gym.envs.config.mixture`) apply only when neither names the scenarios."""
     if config is None:
-        config = EnvConfig() if default_scenarios is None or "scenarios" in overrides else EnvConfig(
-            scenarios=default_scenarios)
+        if default_scenarios is None or "scenarios" in overrides:
+            config = EnvConfig()
+        elif isinstance(default_scenarios, dict):
+            config = EnvConfig(**mixture(default_scenarios))
+        else:
+            config = EnvConfig(scenarios=default_scenarios)
     elif isinstance(config, dict):
         config = EnvConfig.from_dict(config)
     elif not isinstance(config, EnvConfig):
@@ -142,6 +158,22 @@ class ACCEnv(gym.Env):
     | 9 | its speed minus the ego's; 0 if none | m/s | [-70, 70] |
     | 10 | 1 if a second vehicle ahead is in range | - | {0, 1} |
 
+    From version 1 (the ``-v1`` ids, ``EnvConfig.version = 1``) the safety-margin features
+    follow (:mod:`acc_gym.envs.observation`; computed from the fields above, clipped):
+
+    | index | observation | unit | range |
+    |---|---|---|---|
+    | 7 | Gapsafe / R (R: ``sensor_range``) | - | [-1, 2] |
+    | 8 | Q / R, Q = gap - Gapsafe | - | [-2, 1] |
+    | 9 | Q / max(Gapsafe, 1 m): 0 to 0.2 inside the score's band | - | [-1, 5] |
+    | 10 | time headway gap / max(v, 0.1 m/s) | s | [0, 10] |
+    | 11 | inverse time to collision, -v_rel / gap (> 0 closing) | 1/s | [-2, 2] |
+    | 12 | required deceleration -v_rel^2 / (2 gap) while closing, else 0 | m/s^2 | [-20, 0] |
+
+    (after the V2V fields with ``v2v=True``, followed by the same six for the second vehicle
+    ahead: indices 11-16 for the first, 17-22 for the second). With nothing in range they
+    are those of a vehicle at the range moving at the ego's speed.
+
     ## Rewards
 
     Per step, from the score's own criteria (:mod:`acc_gym.envs.reward`): +1 inside the
@@ -151,6 +183,14 @@ class ACCEnv(gym.Env):
     -0.5 while lagging far behind a vehicle it could follow. Each
     term is in ``info["rewards"]``. Parking, hanging back or oscillating earn less than
     following well. Replace it with ``reward_fn=``.
+
+    From version 1 the default is :class:`~acc_gym.envs.reward.MarginReward`: the band,
+    a tent-shaped efficiency highest at the band's centre (not at the safety boundary), a
+    graded proper-response term while Q < 0, speed keeping and a lag penalty without
+    plateaus (a gradient for a parked ego and one far behind), and a collision that costs
+    the rest of the scenario at the worst rate a step can cost. On paper 003's test and
+    paper 004's traffic its returns rank acc, cacc, idm, a tailgater, a slow follower, a
+    parked ego and full throttle as their points do (``tests/envs/test_margin_reward.py``).
 
     ## Starting State
 
@@ -206,13 +246,21 @@ class ACCEnv(gym.Env):
     :func:`acc_gym.make_vec_env`: ``config`` an
     :class:`~acc_gym.envs.config.EnvConfig` (or dict); ``settings`` override its fields
     (``scenarios``, ``weights``, ``drivers``, ``accel_max``, ``decel_max``,
-    ``sensor_range``, ``v2v``, ``terminate_on_violation``, ``scoring``); a misspelt setting
+    ``sensor_range``, ``v2v``, ``terminate_on_violation``, ``scoring``, ``version``); a misspelt setting
     is an error. ``scenario_generator(rng) -> Scenario`` replaces the default sampler.
     ``render_mode``: ``"rgb_array"`` (uint8 top view) or ``"human"`` (a matplotlib window).
 
     ## Version History
 
     * v0: initial version.
+    * v1 (acc-gym 0.7.0, issue 33): the safety-margin features appended to the
+      observation; :class:`~acc_gym.envs.reward.MarginReward` the default reward;
+      ``CarFollowing-v1`` trains on varied traffic (paper 003's test drawn over 40-130 km/h
+      and gentle to emergency stops, the test itself, stop-and-go, paper 004's
+      car-following) behind naturalistic drivers (:data:`acc_gym.envs.registration.CARFOLLOWING_V1`);
+      the others draw what their v0 draws. The v0 ids are unchanged (stored reference
+      episodes, ``tests/envs/test_v0_reference.py``). Provisional until issue 33's shipped
+      policies are trained on it: a change before acc-gym 0.8.0 is listed here.
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 5}
@@ -226,7 +274,7 @@ class ACCEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
         self.observation_space = observation_space(self.config)
         self.core = EpisodeBatch(1, self.config, scenario_generator or ScenarioSampler(self.config),
-                                 reward_fn or CriteriaReward(), mpc_settings)
+                                 reward_fn or default_reward(self.config), mpc_settings)
         self.core.obs_bounds = self._bounds = (self.observation_space.low.astype(float),
                                                self.observation_space.high.astype(float))
         self._accel_max, self._decel_max = float(self.config.accel_max), float(self.config.decel_max)

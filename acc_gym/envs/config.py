@@ -12,10 +12,11 @@ from acc_gym.evaluation.scoring import ScoringConfig
 from acc_gym.scenarios.registry import DRIVER_CHOICES, build, list_scenarios, scenario_type
 from acc_gym.scenarios.spec import Scenario
 
-CARFOLLOWING = tuple(list_scenarios("carfollowing"))
+CARFOLLOWING = tuple(i for i in list_scenarios("carfollowing") if scenario_type(i).in_paper)  # paper 003's test
 SINGLELANE = tuple(i for i in list_scenarios("singlelane") if scenario_type(i).in_paper)
 NCAP = tuple(list_scenarios("ncap"))
 STOPANDGO = ("stopandgo",)
+VERSIONS = (0, 1)  # environment versions (see EnvConfig.version)
 FAMILIES = {"carfollowing": CARFOLLOWING, "singlelane": SINGLELANE, "ncap": NCAP, "stopandgo": STOPANDGO}
 
 
@@ -42,6 +43,9 @@ class EnvConfig:
     v2v: bool = False  # observe the vehicle ahead's acceleration and the second vehicle ahead (CACC)
     terminate_on_violation: bool = False  # also end the episode at a safety violation (proper response)
     scoring: ScoringConfig = field(default_factory=ScoringConfig)
+    # the environment's version (the ids' -vN): 1 appends the safety-margin features to the
+    # observation (acc_gym.envs.observation) and makes MarginReward the default reward
+    version: int = 0
 
     def __post_init__(self) -> None:
         names = (self.scenarios,) if isinstance(self.scenarios, str) else tuple(self.scenarios)
@@ -69,6 +73,8 @@ class EnvConfig:
             number = isinstance(value, (int, float)) and not isinstance(value, bool)
             if not number or not (math.isfinite(value) and value > 0):
                 raise ValueError(f"EnvConfig.{name} must be a number > 0, got {value!r}")
+        if isinstance(self.version, bool) or self.version not in VERSIONS:
+            raise ValueError(f"EnvConfig.version must be one of {list(VERSIONS)}, got {self.version!r}")
         for name in ("v2v", "terminate_on_violation"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"EnvConfig.{name} must be True or False, got {getattr(self, name)!r}")
@@ -97,6 +103,23 @@ class EnvConfig:
     @classmethod
     def from_dict(cls, d: dict) -> "EnvConfig":
         return from_mapping(cls, d, "environment")
+
+
+def mixture(shares: dict) -> dict:
+    """EnvConfig settings (``scenarios``, ``weights``) drawing each of ``shares``' families or
+    ids with its share, and within a family by its default probabilities:
+    ``{"singlelane": 0.75, "carfollowing": 0.25}``."""
+    if not shares:
+        raise ValueError("a mixture must name at least one scenario family or id")
+    total = sum(float(w) for w in shares.values())
+    if not all(float(w) >= 0 for w in shares.values()) or total <= 0:
+        raise ValueError(f"mixture shares must be >= 0 with a positive sum, got {shares!r}")
+    ids, weights = [], []
+    for name, share in shares.items():
+        cfg = EnvConfig(scenarios=(name,))
+        ids += list(cfg.scenarios)
+        weights += [float(share) / total * float(p) for p in cfg.probabilities]
+    return {"scenarios": tuple(ids), "weights": tuple(weights)}
 
 
 class ScenarioSampler:

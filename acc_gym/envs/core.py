@@ -16,6 +16,7 @@ import numpy as np
 from acc_gym.drivers.slots import SlotDrivers, SlotView
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.config import EnvConfig
+from acc_gym.envs.observation import B0, B1, append_features, feature_bounds, feature_names
 from acc_gym.envs.reward import CriteriaReward, StepIndicators
 from acc_gym.evaluation.scoring import judged_tau1, score_episode
 from acc_gym.evaluation.trace import EgoTrace
@@ -58,6 +59,8 @@ class EpisodeBatch:
         self.last_change = np.zeros(self.n)  # when the vehicle ahead last changed [s]
         self.lead_prev = np.full(self.n, -1)
         self.done = np.ones(self.n, dtype=bool)
+        # the safety-margin features' bounds (none for version 0)
+        self._feature_bounds = feature_bounds(config.v2v) if config.version >= 1 else (np.empty(0), np.empty(0))
         self.episode_return = np.zeros(self.n)
         self._set_record(np.zeros((len(_RECORD), self.n, 1)))
         cfg = config.scoring
@@ -165,12 +168,22 @@ class EpisodeBatch:
         """Observations ``(n, 7)`` or ``(n, 11)`` with V2V (see the environment docstring),
         clipped to ``[low, high]`` when given (the observation space's bounds), as ``dtype``."""
         m = 11 if self.config.v2v else 7
-        low = np.full(m, -np.inf) if low is None else np.asarray(low, dtype=float)
-        high = np.full(m, np.inf) if high is None else np.asarray(high, dtype=float)
-        out = np.empty((self.n, m), dtype=dtype)
-        K.observe(self.world.observation_array(0), self.set_speed, self.time_gap, float(self.config.sensor_range), bool(self.config.v2v), low, high,
-                  out)
-        return out
+        extra = len(feature_names(self.config.v2v)) if self.config.version >= 1 else 0
+        low = np.full(m + extra, -np.inf) if low is None else np.asarray(low, dtype=float)
+        high = np.full(m + extra, np.inf) if high is None else np.asarray(high, dtype=float)
+        out = np.empty((self.n, m), dtype=dtype if not extra else float)
+        K.observe(self.world.observation_array(0), self.set_speed, self.time_gap, float(self.config.sensor_range),
+                  bool(self.config.v2v), low[:m], high[:m], out)
+        return self._with_features(out, dtype) if extra else out
+
+    def _with_features(self, obs0: np.ndarray, dtype) -> np.ndarray:
+        """Version 1: the v0 observation ``obs0`` ``(n, m)`` with the safety-margin features
+        appended (:func:`acc_gym.envs.observation.append_features`; clipped to their bounds)."""
+        low, high = self._feature_bounds
+        out = np.empty((obs0.shape[0], obs0.shape[1] + low.shape[0]))
+        append_features(np.ascontiguousarray(obs0, dtype=float), float(self.config.sensor_range), B0, B1, low, high,
+                        out)
+        return out.astype(dtype, copy=False)
 
     # ------------------------------------------------------------------ step
     def step(self, a_des: np.ndarray, active: np.ndarray | None = None):
@@ -216,7 +229,7 @@ class EpisodeBatch:
                                  has_lead=bo[K.B_HAS], gap=fl[K.F_GAP], gap_safe=gs, q=q, in_band=bo[K.B_IN_BAND],
                                  following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=violation,
                                  collision=collision, a_comfort=cfg.a_x_comfort, followable=bo[K.B_FOLLOWABLE],
-                                 v_lead=fl[K.F_VLEAD], tau1=self.tau1)
+                                 v_lead=fl[K.F_VLEAD], tau1=self.tau1, steps_left=self.steps - w.k)
             reward, terms = self.reward_fn(ind)
             reward = np.asarray(reward, dtype=float)
             if reward.shape != (n,):
@@ -228,7 +241,9 @@ class EpisodeBatch:
         rows, ended = np.empty((2, n), dtype=np.int64)
         if self.obs_bounds is not None:
             low, high = self.obs_bounds
-            obs = np.empty((n, low.shape[0]), dtype=np.float32)
+            m0 = low.shape[0] - self._feature_bounds[0].shape[0]  # the v0 fields (all of them for version 0)
+            low, high = low[:m0], high[:m0]
+            obs = np.empty((n, m0), dtype=np.float32 if m0 == self.obs_bounds[0].shape[0] else float)
         else:
             low = high = self._no_bounds
             obs = np.empty((0, 1), dtype=np.float32)
@@ -237,6 +252,8 @@ class EpisodeBatch:
                                    self.lane_width, self.n_lanes, self._rec_arr, obs_all, self.set_speed,
                                    self.time_gap, float(self.config.sensor_range), bool(self.config.v2v), low, high,
                                    obs)
+        if obs.shape[0] and obs.shape[1] < self.obs_bounds[0].shape[0]:
+            obs = self._with_features(obs, np.float32)
         self.last_obs = obs if obs.shape[0] else None
         self.last_rows = (fl, bo, terms_arr)  # the step's criteria rows (and default reward terms) as arrays
         ended = ended[:n_ended]

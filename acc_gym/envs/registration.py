@@ -25,22 +25,36 @@ from __future__ import annotations
 
 import importlib
 
+# The -v1 car-following id trains on varied traffic (issue 33): paper 003's test drawn wider
+# (40-130 km/h, gentle to emergency stops), the test itself, stop-and-go queues and paper
+# 004's car-following configuration, behind naturalistic human-like drivers; paper 003's
+# test stays what is scored (the carfollowing-v1 suite, CarFollowing-v0).
+CARFOLLOWING_V1 = {"carfollowing/varied": 0.5, "carfollowing": 0.2, "stopandgo": 0.15,
+                   "singlelane/2/car-following": 0.15}
+
+# id -> (default scenarios, settings)
 ENV_IDS = {
-    "acc_gym/CarFollowing-v0": ("carfollowing",),  # paper 003's test at 60, 90, 120 km/h
-    "acc_gym/SingleLane-v0": ("singlelane",),  # paper 004's 22 configurations by occurrence rate
-    "acc_gym/NCAP-v0": ("ncap",),  # CCRs, CCRm, CCRb
-    "acc_gym/StopAndGo-v0": ("stopandgo",),
+    "acc_gym/CarFollowing-v0": (("carfollowing",), {}),  # paper 003's test at 60, 90, 120 km/h
+    "acc_gym/SingleLane-v0": (("singlelane",), {}),  # paper 004's 22 configurations by occurrence rate
+    "acc_gym/NCAP-v0": (("ncap",), {}),  # CCRs, CCRm, CCRb
+    "acc_gym/StopAndGo-v0": (("stopandgo",), {}),
+    # version 1: the safety-margin features in the observation, MarginReward (issue 33)
+    "acc_gym/CarFollowing-v1": (CARFOLLOWING_V1, {"version": 1, "drivers": "naturalistic"}),
+    "acc_gym/SingleLane-v1": (("singlelane",), {"version": 1}),
+    "acc_gym/NCAP-v1": (("ncap",), {"version": 1}),
+    "acc_gym/StopAndGo-v1": (("stopandgo",), {"version": 1}),
 }
 
 
 def register_envs() -> None:
     from gymnasium.envs.registration import register, registry
 
-    for env_id, family in ENV_IDS.items():
+    for env_id, (family, settings) in ENV_IDS.items():
         if env_id in registry:
             continue
         register(id=env_id, entry_point="acc_gym.envs.acc_env:ACCEnv",
-                 vector_entry_point="acc_gym.envs.vector:ACCVectorEnv", kwargs={"default_scenarios": family})
+                 vector_entry_point="acc_gym.envs.vector:ACCVectorEnv",
+                 kwargs={"default_scenarios": family, **settings})
 
 
 def qualified_id(env_id: str) -> str:

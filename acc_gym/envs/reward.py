@@ -64,6 +64,18 @@ class StepIndicators:
     followable: np.ndarray | None = None  # a vehicle ahead the ego could follow (moving, not faster than v_set)
     v_lead: np.ndarray | None = None  # [m/s]
     tau1: np.ndarray | None = None  # [s]
+    steps_left: np.ndarray | None = None  # steps the scenario still had to run after this one
+
+
+def _check_weights(reward, positive: tuple[str, ...]) -> None:
+    """Every field of a reward dataclass a finite number >= 0, those in ``positive`` > 0."""
+    name = type(reward).__name__
+    for f in fields(reward):
+        value = getattr(reward, f.name)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+            raise ValueError(f"{name}.{f.name} must be a number >= 0, got {value!r}")
+        if f.name in positive and value <= 0:
+            raise ValueError(f"{name}.{f.name} must be > 0, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -81,12 +93,7 @@ class CriteriaReward:
     jerk_scale: float = 10.0  # [m/s^3]
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise ValueError(f"CriteriaReward.{f.name} must be a number >= 0, got {value!r}")
-        if self.jerk_scale <= 0:
-            raise ValueError(f"CriteriaReward.jerk_scale must be > 0, got {self.jerk_scale!r}")
+        _check_weights(self, ("jerk_scale",))
         object.__setattr__(self, "_w", np.array([self.band, self.efficiency, self.speed, self.comfort, self.jerk,
                                                  self.safety, self.collision, self.lag, self.jerk_scale], dtype=float))
 
@@ -145,4 +152,128 @@ class CriteriaReward:
             far = 1.2 * s.tau1 * s.v_lead + 5.0  # [m] the band's upper edge at the lead's speed, plus 5 m
             terms["lag"] = -self.lag * np.where(s.followable, np.clip((s.gap - far) / far, 0.0, 1.0), 0.0)
         terms = {k: np.asarray(v, dtype=float) for k, v in terms.items()}
+        return sum(terms.values()), terms
+
+
+@dataclass(frozen=True)
+class MarginReward:
+    """A reward for learning ACC from scratch (issue 33; not yet any id's default): the
+    score's own terms, reshaped so that their optimum sits inside the band rather than on
+    the safety boundary and so that every state has a gradient.
+
+    ==============  ====================================================================  ==========
+    term            per step                                                              default w
+    ==============  ====================================================================  ==========
+    band            ``+w`` on a car-following sample inside ``0 < Q < 0.2 Gapsafe``          1.0
+    efficiency      ``+w max(0, 1 - |u_t - peak| / max(peak, 1 - peak))`` on a                1.0
+                    car-following sample: a tent over the band, highest at ``u_t = peak``
+    speed           ``+w (1 - e)`` with ``e = |v - v_set| / (0.2 v_set)`` for ``e <= 1``,      1.0
+                    ``-w slope (e - 1)`` beyond (no plateau) -- with nothing to follow in
+                    view, and while far behind a vehicle it could follow
+    response        ``-w clip((a + a_resp) / a_resp, 0, 1)`` while ``Q < 0``: braking less     1.0
+                    than the score's proper response ``a_resp`` (2 m/s^2)
+    comfort         ``-w (a / 3 m/s^2)^2``                                                     0.1
+    jerk            ``-w (jerk / 10 m/s^3)^2``                                                 0.02
+    safety          ``-w`` on a proper-response violation                                     2.0
+    collision       ``-(w + c_max steps_left)`` once, when the ego hits the vehicle ahead      100
+                    (terminates): ``c_max`` is the most the other terms can charge in a
+                    step (:attr:`max_step_cost`), ``steps_left`` the steps the scenario
+                    still had to run
+    lag             ``-w x / (1 + x)``, ``x = (gap - D) / D``, while a followable vehicle      0.5
+                    is ahead beyond ``D = 1.2 tau1 v_lead + 5 m`` (any distance)
+    ==============  ====================================================================  ==========
+
+    The comfort and jerk terms count ``|a|`` up to 9 m/s^2 and the jerk up to 30 m/s^3, and
+    the speed term's slope stops at ``e = 5`` (a parked ego), so a step costs at most
+    :attr:`max_step_cost` (5.58 with the defaults).
+
+    Why these changes to :class:`CriteriaReward`:
+
+    * **Efficiency.** The score's ``R1 = 20 (1 - u)`` pays most at ``Q = 0``, the safety
+      boundary; one sample below it fails the safety item and 60 of the 100 points. A
+      policy that hugs the boundary gains at most 20 points and risks 60, so under any
+      uncertainty about the lead the expected score is highest inside the band: the tent
+      (``peak`` 0.5 by default, the band's centre) pays there.
+    * **Response.** The score forgives ``Q < 0`` only while the ego brakes at 2 m/s^2 or
+      more; the graded term says so every step, not only at the violation.
+    * **A collision is the worst outcome.** It ends the episode, so a flat penalty can be
+      cheaper than driving on badly: with -100, a full-throttle ego that hits the lead
+      halfway through paper 003's test returned more than a tailgater that finished it
+      (score 0 against 30). Charging the rest of the scenario at the worst rate a step can
+      cost makes any collision return less than any way of finishing.
+    * **Gradient everywhere.** The v0 terms saturate: the speed term is 0 for any speed
+      20 % off the set speed (a parked ego gets nothing for moving), and the lag term is
+      -0.5 for any gap beyond twice the band's far edge (300 m behind is as bad as 60 m).
+      Here the speed term keeps a slope beyond 20 % and also applies while far behind a
+      followable vehicle (an ACC drives at its set speed until it closes in), and the lag
+      term grows without a plateau.
+    """
+
+    band: float = 1.0
+    efficiency: float = 1.0
+    speed: float = 1.0
+    response: float = 1.0
+    comfort: float = 0.1
+    jerk: float = 0.02
+    safety: float = 2.0
+    collision: float = 100.0
+    lag: float = 0.5
+    peak: float = 0.5  # [-] u_t where the efficiency tent is highest (0: the safety boundary, 1: the band's far edge)
+    slope: float = 0.25  # [-] the speed term's slope beyond 20 % off the set speed, per 20 %
+    response_decel: float = 2.0  # [m/s^2] braking that counts as a proper response (ScoringConfig.response_decel)
+    jerk_scale: float = 10.0  # [m/s^3]
+
+    TERMS = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag")
+
+    def __post_init__(self) -> None:
+        _check_weights(self, ("response_decel", "jerk_scale"))
+        if not 0.0 <= self.peak <= 1.0:
+            raise ValueError(f"MarginReward.peak must be in [0, 1] (a position in the band), got {self.peak!r}")
+
+    A_COUNTED = 9.0  # [m/s^2] the comfort term counts |a| up to this (about the tyre limit)
+    JERK_COUNTED = 30.0  # [m/s^3] the jerk term counts |jerk| up to this
+    E_COUNTED = 5.0  # the speed term's slope stops here (a parked ego: e = 5)
+
+    @property
+    def max_step_cost(self) -> float:
+        """The most the terms other than the collision can charge in one step (a_comfort 3 m/s^2)."""
+        return (self.speed * self.slope * (self.E_COUNTED - 1.0) + self.response + self.comfort * (self.A_COUNTED / 3.0) ** 2
+                + self.jerk * (self.JERK_COUNTED / self.jerk_scale) ** 2 + self.safety + self.lag)
+
+    def __call__(self, s: StepIndicators) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        if s.followable is None or s.v_lead is None or s.tau1 is None:
+            raise ValueError("MarginReward needs the indicators followable, v_lead and tau1 (acc_gym's environments "
+                             "give them)")
+        v = np.asarray(s.v, dtype=float)
+        following = np.asarray(s.following, dtype=bool)
+        followable = np.asarray(s.followable, dtype=bool)
+        gap = np.asarray(s.gap, dtype=float)
+        far = 1.2 * np.asarray(s.tau1, dtype=float) * np.asarray(s.v_lead, dtype=float) + 5.0  # [m]
+        with np.errstate(invalid="ignore"):
+            behind = followable & (gap > far)
+            x = np.where(behind, (gap - far) / far, 0.0)
+            lag = np.where(behind, np.where(np.isfinite(x), x / (1.0 + x), 1.0), 0.0)
+        set_speed = np.asarray(s.set_speed, dtype=float)
+        e = np.abs(v - set_speed) / (0.2 * set_speed)
+        speed = np.where(e <= 1.0, 1.0 - e, -self.slope * (np.minimum(e, self.E_COUNTED) - 1.0))
+        width = max(self.peak, 1.0 - self.peak)
+        u = np.nan_to_num(np.asarray(s.u, dtype=float), nan=1.0)
+        tent = np.maximum(0.0, 1.0 - np.abs(u - self.peak) / width)
+        q = np.asarray(s.q, dtype=float)
+        short = np.asarray(s.a, dtype=float) + self.response_decel
+        steps_left = 0.0 if s.steps_left is None else np.maximum(np.asarray(s.steps_left, dtype=float), 0.0)
+        terms = {
+            "band": self.band * (following & np.asarray(s.in_band, dtype=bool)),
+            "efficiency": self.efficiency * np.where(following, tent, 0.0),
+            "speed": self.speed * np.where(np.asarray(s.free, dtype=bool) | behind, speed, 0.0),
+            "response": -self.response * np.where(q < 0, np.clip(short / self.response_decel, 0.0, 1.0), 0.0),
+            "comfort": -self.comfort * (np.minimum(np.abs(np.asarray(s.a, dtype=float)), self.A_COUNTED)
+                                        / s.a_comfort) ** 2,
+            "jerk": -self.jerk * (np.minimum(np.abs(np.asarray(s.jerk, dtype=float)), self.JERK_COUNTED)
+                                  / self.jerk_scale) ** 2,
+            "safety": -self.safety * np.asarray(s.violation, dtype=float),
+            "collision": -np.asarray(s.collision, dtype=float) * (self.collision + self.max_step_cost * steps_left),
+            "lag": -self.lag * lag,
+        }
+        terms = {k: np.asarray(val, dtype=float) for k, val in terms.items()}
         return sum(terms.values()), terms

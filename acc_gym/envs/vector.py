@@ -38,11 +38,10 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from acc_gym.envs.acc_env import action_to_accel, check_actions, make_config, observation_space
+from acc_gym.envs.acc_env import action_to_accel, check_actions, default_reward, make_config, observation_space
 from acc_gym.envs.config import EnvConfig, ScenarioSampler
 from acc_gym.envs.core import EpisodeBatch
 from acc_gym.evaluation.scoring import score_episode
-from acc_gym.envs.reward import CriteriaReward
 from acc_gym.envs.shards import Shards, merge_infos, split
 from acc_gym.scenarios.registry import build
 from acc_gym.scenarios.spec import Scenario
@@ -83,7 +82,7 @@ class ACCVectorEnv(VectorEnv):
                                   workers_context)
             return
         self.core = EpisodeBatch(self.num_envs, self.config, scenario_generator or ScenarioSampler(self.config),
-                                 reward_fn or CriteriaReward(), mpc_settings)
+                                 reward_fn or default_reward(self.config), mpc_settings)
         space = self.single_observation_space
         self.core.obs_bounds = self._bounds = (space.low.astype(float), space.high.astype(float))
         self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]

@@ -83,8 +83,8 @@ def env_for(scenario_id: str) -> str:
     from acc_gym.scenarios.registry import scenario_type
 
     fam = scenario_type(scenario_id).family
-    for env_id, families in ENV_IDS.items():
-        if fam in families:
+    for env_id, (families, settings) in ENV_IDS.items():
+        if not settings and fam in families:  # the -v0 id of the family (estimates keep v0's reward-free contract)
             return env_id
     raise ValueError(f"no environment runs the {fam!r} family of {scenario_id!r}")
 

@@ -20,6 +20,11 @@ run (the leaderboard's suites use several seeds as "several drivers"):
 * emergency stop: braking at ``brake_decel`` from the limit so that the BV's front bumper
   stops ``stop_margin`` before the road's end, then standing for ``hold`` seconds.
 
+``carfollowing/varied`` (not in the paper; the ``-v1`` CarFollowing id trains on it, issue
+33) is the same test drawn wider: a speed limit anywhere in 40-130 km/h, a final stop
+braking at 2-8 m/s^2 (gentle to emergency) and a road of 1.5-3 km (so that the faster
+runs have room to cruise and dip).
+
 Parameters (all with defaults; ``speed_limit`` comes from the id): ``brake_decel`` normal
 (6.5, 0.7) m/s^2 in [5, 8] (hard but below the tyre limit of about 8.5 m/s^2),
 ``road_length`` 1000 m, ``start_gap`` 20 m, ``stop_margin`` 50 m, ``hold`` 8 s, and the
@@ -103,6 +108,11 @@ def _build(stype: ScenarioType, p: dict, rng: np.random.Generator, drivers: str,
                     drivers=drivers, description=stype.description)
 
 
+_POSITIVE = frozenset({"speed_limit", "brake_decel", "road_length", "start_gap", "stop_margin", "time_gap"})
+_UNITS = {"speed_limit": "[km/h]", "brake_decel": "[m/s^2] the lead's emergency braking", "road_length": "[m]",
+          "start_gap": "[m] initial bumper gap", "stop_margin": "[m] lead stops this far before the end",
+          "hold": "[s] standing time at the end", "time_gap": "[s] ego's nominal time gap"}
+
 for _kmh in SPEEDS_KMH:
     register(ScenarioType(
         f"carfollowing/{_kmh}", "carfollowing",
@@ -111,10 +121,18 @@ for _kmh in SPEEDS_KMH:
         {"speed_limit": Constant(float(_kmh)), "brake_decel": Normal(6.5, 0.7, low=5.0, high=8.0),
          "road_length": Constant(1000.0), "start_gap": Constant(20.0), "stop_margin": Constant(50.0),
          "hold": Constant(8.0), "time_gap": Constant(1.5)},
-        _build,
-        positive=frozenset({"speed_limit", "brake_decel", "road_length", "start_gap", "stop_margin", "time_gap"}),
-        nonnegative=frozenset({"hold"}),
-        units={"speed_limit": "[km/h]", "brake_decel": "[m/s^2] the lead's emergency braking",
-               "road_length": "[m]", "start_gap": "[m] initial bumper gap",
-               "stop_margin": "[m] lead stops this far before the end",
-               "hold": "[s] standing time at the end", "time_gap": "[s] ego's nominal time gap"}))
+        _build, positive=_POSITIVE, nonnegative=frozenset({"hold"}), units=_UNITS))
+
+
+# --- varied car-following for training (issue 33): not in the paper ---------------------------
+
+register(ScenarioType(
+    "carfollowing/varied", "carfollowing",
+    "Paper 003's test drawn wider, for training: the lead starts 20 m ahead, accelerates irregularly to a "
+    "speed limit anywhere in 40-130 km/h, dips, and stops at the end of the road braking anywhere from "
+    "2 m/s^2 (a gentle stop) to 8 m/s^2 (an emergency); the road is 1.5-3 km long.",
+    {"speed_limit": Normal(85.0, 60.0, low=40.0, high=130.0), "brake_decel": Normal(4.5, 2.5, low=2.0, high=8.0),
+     "road_length": Normal(2250.0, 750.0, low=1500.0, high=3000.0), "start_gap": Constant(20.0),
+     "stop_margin": Constant(50.0), "hold": Constant(8.0), "time_gap": Constant(1.5)},
+    _build, positive=_POSITIVE, nonnegative=frozenset({"hold"}),
+    units={**_UNITS, "brake_decel": "[m/s^2] the lead's braking to its final stop"}, in_paper=False))

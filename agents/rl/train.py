@@ -62,20 +62,13 @@ def _versions() -> dict:
 
 def mix_settings(mix: dict) -> dict:
     """Env settings (``scenarios``, ``weights``) drawing each of ``mix``'s families or ids with its share,
-    and within a family by its default probabilities: ``{"singlelane": 0.75, "carfollowing": 0.25}``."""
-    from acc_gym.envs.config import EnvConfig
+    and within a family by its default probabilities: ``{"singlelane": 0.75, "carfollowing": 0.25}``
+    (:func:`acc_gym.envs.config.mixture`)."""
+    from acc_gym.envs.config import mixture
 
     if not mix:
         raise ValueError("mix must name at least one scenario family or id")
-    total = sum(float(w) for w in mix.values())
-    if not all(float(w) >= 0 for w in mix.values()) or total <= 0:
-        raise ValueError(f"mix shares must be >= 0 with a positive sum, got {mix!r}")
-    ids, weights = [], []
-    for name, share in mix.items():
-        cfg = EnvConfig(scenarios=(name,))
-        ids += list(cfg.scenarios)
-        weights += [float(share) / total * float(p) for p in cfg.probabilities]
-    return {"scenarios": tuple(ids), "weights": tuple(weights)}
+    return mixture(mix)
 
 
 DEFAULT_TIMESTEPS = 100_000  # without tuned hyperparameters (acc_gym_agents.rl.hyperparams)

@@ -576,7 +576,7 @@ def test_unknown_env_id():
     with pytest.raises(gymnasium.error.Error):
         gymnasium.make("acc_gym/Nope-v0")
     with pytest.raises(gymnasium.error.Error):
-        gymnasium.make("acc_gym/NCAP-v1")
+        gymnasium.make("acc_gym/NCAP-v9")
 
 
 @pytest.mark.parametrize("as_dict", [False, True], ids=["EnvConfig", "dict"])

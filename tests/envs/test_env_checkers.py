@@ -28,8 +28,8 @@ def _record(fn, *args, **kwargs) -> list[str]:
 
 
 def test_every_family_is_registered():
-    assert set(IDS) == {"acc_gym/CarFollowing-v0", "acc_gym/SingleLane-v0", "acc_gym/NCAP-v0",
-                        "acc_gym/StopAndGo-v0"}
+    assert set(IDS) == {f"acc_gym/{name}-v{k}" for name in ("CarFollowing", "SingleLane", "NCAP", "StopAndGo")
+                        for k in (0, 1)}
     for env_id in IDS:
         spec = gymnasium.spec(env_id)
         assert spec.entry_point == "acc_gym.envs.acc_env:ACCEnv"

@@ -33,11 +33,12 @@ def test_families_and_listing():
     assert families() == ["carfollowing", "ncap", "singlelane", "stopandgo"]
     by_family = {f: list_scenarios(f) for f in families()}
     assert sorted(sum(by_family.values(), [])) == sorted(ALL)  # a partition
-    assert len(ALL) == len(set(ALL)) == 23 + 3 + 24 + 1
+    assert len(ALL) == len(set(ALL)) == 23 + 3 + 1 + 24 + 1  # carfollowing/varied (issue 33)
     for f, ids in by_family.items():
         assert all(scenario_type(i).family == f for i in ids)
     assert by_family["stopandgo"] == ["stopandgo"]
-    assert by_family["carfollowing"] == ["carfollowing/60", "carfollowing/90", "carfollowing/120"]
+    assert by_family["carfollowing"] == ["carfollowing/60", "carfollowing/90", "carfollowing/120", "carfollowing/varied"]
+    assert [i for i in by_family["carfollowing"] if scenario_type(i).in_paper] == by_family["carfollowing"][:3]
 
 
 @pytest.mark.parametrize("sid", ALL)

@@ -1,0 +1,163 @@
+"""MarginReward (issue 33's reward for learning from scratch): its terms against hand
+computations, its gradient where the v0 reward has none, and its order of a fixed set of
+behaviours against the order of their points (the leaderboard's: the 100-point score,
+0 for a collision) on the same episodes."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import acc_gym  # noqa: F401  (registers the ids)
+from acc_gym.envs.reward import CriteriaReward, MarginReward, StepIndicators
+from acc_gym.evaluation.runner import load_controller
+from acc_gym.leaderboard.isolation import episode_points
+from acc_gym_agents.controllers.linear import LinearACC
+
+TAU = 1.5  # [s]
+B = 8.0  # [m/s^2]
+
+
+def state(v, gap=np.inf, v_lead=0.0, set_speed=25.0, a=0.0, jerk=0.0, violation=False, collision=False,
+          steps_left=0):
+    """The indicators of one step, computed from the state as the environment does (Gapsafe, Q,
+    band, u_t; a following sample: a lead in view and moving; free: nothing in view)."""
+    v, gap = np.array([float(v)]), np.array([float(gap)])
+    in_view = np.isfinite(gap) & (gap <= 200.0)
+    gs = v * TAU + v ** 2 / (2 * B) - v_lead ** 2 / (2 * B)
+    q = np.where(np.isfinite(gap), gap - gs, np.inf)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = np.where(gs > 0, np.clip(q / (0.2 * gs), 0, 1), np.nan)
+    following = in_view & (v_lead > 0)
+    return StepIndicators(v=v, a=np.array([a]), jerk=np.array([jerk]), set_speed=np.array([set_speed]),
+                          has_lead=np.isfinite(gap), gap=gap, gap_safe=gs, q=q,
+                          in_band=(gs > 0) & (q > 0) & (q < 0.2 * gs), following=following, free=~in_view, u=u,
+                          violation=np.array([violation]), collision=np.array([collision]),
+                          followable=np.isfinite(gap) & (v_lead > 0) & (v_lead <= set_speed),
+                          v_lead=np.array([float(v_lead)]), tau1=np.array([TAU]), steps_left=np.array([steps_left]))
+
+
+def reward(s, fn=None):
+    r, terms = (fn or MarginReward())(s)
+    return float(r[0]), {k: float(x[0]) for k, x in terms.items()}
+
+
+def test_terms_equal_hand_computations():
+    # following at 20 m/s behind a lead at 20 m/s: Gapsafe = 30 m; Q = 33 - 30 = 3 m, u_t = 3 / 6 = 0.5:
+    # band 1, tent at its peak 1; braking at 1 m/s^2: comfort -0.1 (1/3)^2; jerk 5: -0.02 (5/10)^2
+    r, t = reward(state(20.0, 33.0, 20.0, a=-1.0, jerk=5.0))
+    assert t["band"] == 1.0 and t["efficiency"] == pytest.approx(1.0)
+    assert t["comfort"] == pytest.approx(-0.1 / 9) and t["jerk"] == pytest.approx(-0.005)
+    assert t["speed"] == t["response"] == t["lag"] == t["safety"] == t["collision"] == 0.0
+    assert r == pytest.approx(2.0 - 0.1 / 9 - 0.005)
+    # Q = 1.2 m (u_t = 0.2): the tent pays 1 - 0.3 / 0.5 = 0.4; the v0 reward pays 0.5 (1 - 0.2) = 0.4 there too
+    assert reward(state(20.0, 31.2, 20.0))[1]["efficiency"] == pytest.approx(0.4)
+    # inside Gapsafe (Q = -2 m) braking at 0.5 m/s^2: response -(2 - 0.5) / 2 = -0.75; at 2 m/s^2: 0
+    assert reward(state(20.0, 28.0, 20.0, a=-0.5))[1]["response"] == pytest.approx(-0.75)
+    assert reward(state(20.0, 28.0, 20.0, a=-2.0))[1]["response"] == 0.0
+    assert reward(state(20.0, 28.0, 20.0, a=1.0))[1]["response"] == -1.0
+    # free driving at 22 m/s, set 25: e = 3 / 5 = 0.6 -> 0.4; parked: e = 5 -> -0.25 * 4 = -1
+    assert reward(state(22.0))[1]["speed"] == pytest.approx(0.4)
+    assert reward(state(0.0))[1]["speed"] == pytest.approx(-1.0)
+    # 300 m behind a lead at 15 m/s: D = 1.2 * 1.5 * 15 + 5 = 32 m, x = 268 / 32, lag -0.5 x / (1 + x);
+    # the speed term applies there too (at 25 m/s: 1)
+    _, t = reward(state(25.0, 300.0, 15.0))
+    x = 268.0 / 32.0
+    assert t["lag"] == pytest.approx(-0.5 * x / (1 + x)) and t["speed"] == pytest.approx(1.0)
+    # a collision with 100 steps of the scenario left: -(100 + 5.58 * 100)
+    assert MarginReward().max_step_cost == pytest.approx(0.25 * 4 + 1 + 0.1 * 9 + 0.02 * 9 + 2 + 0.5)
+    _, t = reward(state(20.0, 0.0, 10.0, collision=True, steps_left=100))
+    assert t["collision"] == pytest.approx(-(100 + 5.58 * 100))
+
+
+def test_no_step_costs_more_than_max_step_cost():
+    rng = np.random.default_rng(0)
+    fn = MarginReward()
+    worst = 0.0
+    for _ in range(3000):
+        s = state(rng.uniform(0, 70), rng.choice([np.inf, rng.uniform(0.1, 400)]), rng.uniform(0, 40),
+                  set_speed=rng.uniform(5, 40), a=rng.uniform(-12, 12), jerk=rng.uniform(-90, 90),
+                  violation=bool(rng.random() < 0.5))
+        _, t = reward(s, fn)
+        worst = min(worst, sum(x for x in t.values() if x < 0))
+    assert -fn.max_step_cost - 1e-9 <= worst < -0.8 * fn.max_step_cost
+
+
+@pytest.mark.parametrize("where", ["parked behind a moving lead", "parked, nothing ahead", "300 m behind"])
+def test_the_reward_has_a_gradient_where_the_v0_reward_has_none(where):
+    """Finite differences of the reward in the ego's speed (the state's indicators recomputed)."""
+    gap, v_lead, v = {"parked behind a moving lead": (60.0, 15.0, 0.0), "parked, nothing ahead": (np.inf, 0.0, 0.0),
+                      "300 m behind": (300.0, 15.0, 10.0)}[where]
+    dv = 0.5
+    grad = (reward(state(v + dv, gap, v_lead))[0] - reward(state(v, gap, v_lead))[0]) / dv
+    assert grad > 0.01, grad  # faster is better: towards the set speed, closing in
+    v0 = CriteriaReward()
+    flat = (reward(state(v + dv, gap, v_lead), v0)[0] - reward(state(v, gap, v_lead), v0)[0]) / dv
+    assert flat == 0.0  # what the v0 reward gives there
+
+
+class GapScaled:
+    """The linear ACC keeping ``factor`` times the observed time gap (without declaring it)."""
+
+    def __init__(self, factor):
+        self.factor, self.acc = factor, LinearACC()
+
+    def predict(self, obs, deterministic=True):
+        o = np.array(obs, dtype=np.float32, copy=True)
+        o[..., 6] *= self.factor
+        return self.acc.predict(o, deterministic)
+
+
+class Constant:
+    def __init__(self, action):
+        self.action = np.array([action], dtype=np.float32)
+
+    def predict(self, obs, deterministic=True):
+        return self.action, None
+
+
+BEHAVIOURS = {"acc": lambda: load_controller("acc"), "cacc": lambda: load_controller("cacc"),
+              "idm": lambda: load_controller("idm"), "tailgater": lambda: GapScaled(0.5),
+              "slow follower": lambda: GapScaled(2.0), "parked": lambda: Constant(-1.0),
+              "full throttle": lambda: Constant(1.0)}
+
+
+def returns_and_points(env_id, episodes):
+    out = {}
+    for name, make in BEHAVIOURS.items():
+        env, policy, ret, pts = gym.make(env_id, reward_fn=MarginReward()), make(), [], []
+        for seed in range(episodes):
+            obs, _ = env.reset(seed=seed)
+            total, done = 0.0, False
+            while not done:
+                action, _ = policy.predict(obs, deterministic=True)
+                obs, r, term, trunc, info = env.step(np.asarray(action, dtype=np.float32).reshape(1))
+                total, done = total + r, term or trunc
+            ret.append(total)
+            pts.append(episode_points(info["report"]))
+        out[name] = (float(np.mean(ret)), float(np.mean(pts)))
+    return out
+
+
+@pytest.mark.parametrize("env_id, episodes", [("acc_gym/CarFollowing-v0", 6), ("acc_gym/SingleLane-v0", 12)])
+def test_returns_rank_the_behaviours_as_their_points_do(env_id, episodes):
+    """Every pair of behaviours whose mean points differ by 10 or more is ordered the same way
+    by mean return (pairs closer in points, which a dozen episodes cannot rank, are not
+    compared). On paper 003's test: cacc 79, acc 77, idm / slow follower / parked 45,
+    tailgater 30, full throttle 0 (a collision)."""
+    res = returns_and_points(env_id, episodes)
+    checked = 0
+    for a, (ret_a, pts_a) in res.items():
+        for b, (ret_b, pts_b) in res.items():
+            if pts_a >= pts_b + 10.0:
+                checked += 1
+                assert ret_a > ret_b, (env_id, a, b, res)
+    assert checked >= 10, res
+    assert res["full throttle"][1] < 20.0 and res["full throttle"][0] == min(r for r, _ in res.values())
+
+
+@pytest.mark.parametrize("kw, match", [({"band": -1.0}, "band.*-1"), ({"peak": 1.5}, "peak.*1.5"),
+                                       ({"response_decel": 0.0}, "response_decel.*> 0"),
+                                       ({"lag": float("nan")}, "lag.*nan"), ({"slope": True}, "slope.*True")])
+def test_bad_weights_are_named(kw, match):
+    with pytest.raises(ValueError, match=match):
+        MarginReward(**kw)
