@@ -109,3 +109,20 @@ def test_a_bad_version_is_named():
         EnvConfig(version=7)
     with pytest.raises(ValueError, match="version"):
         ACCEnv(version=True)
+
+
+def test_worker_shards_give_the_same_v1_steps():
+    a = gym.make_vec("acc_gym/SingleLane-v1", num_envs=4, vectorization_mode="vector_entry_point")
+    b = gym.make_vec("acc_gym/SingleLane-v1", num_envs=4, vectorization_mode="vector_entry_point", workers=2)
+    try:
+        oa, _ = a.reset(seed=3)
+        ob, _ = b.reset(seed=3)
+        assert oa.shape == (4, 13) and np.array_equal(oa, ob)
+        act = np.full((4, 1), 0.1, dtype=np.float32)
+        for _ in range(30):
+            oa, ra, *_ = a.step(act)
+            ob, rb, *_ = b.step(act)
+            assert np.array_equal(oa, ob) and np.array_equal(ra, rb)
+    finally:
+        b.close()
+        a.close()
