@@ -54,8 +54,8 @@ log-uniform in ``Q1N_RANGE`` = [0.02, 2.8] and sets ``q1 = q1n (20 m/s / v)^4``:
   four band medians and the whole population's quartiles) and Fig. 7a (mean and sd), on
   a few thousand naturalistic drivers of ``benchmarks/fidelity.py`` under other seeds than
   the report's. Driver model 3's range [0.04, 2.8] was chosen on Fig. 7a alone with 300
-  drivers, whose 45 drivers braking at 30-40 m/s happened to give -1.22; with a thousand
-  drivers that band's median is -1.28 to -1.33 and the 10-20 m/s band's -1.49 to -1.57
+  drivers, whose 45 drivers braking at 30-40 m/s happened to give -1.22; with 400-1,200
+  drivers that band's median is -1.28 to -1.40 and the 10-20 m/s band's -1.49 to -1.57
   (paper -1.20 and -1.36), while the whole population's mean and quartiles fit [0.04, 2.8]
   and [0.02, 2.8] about equally. [0.02, 2.8] puts every band within 0.05 m/s^2 of the paper
   (Fig. 7a mean -1.33, sd 0.47). Its lower end had been held at 0.04 because weaker drivers
