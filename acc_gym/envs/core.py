@@ -16,7 +16,7 @@ import numpy as np
 from acc_gym.drivers.slots import SlotDrivers, SlotView
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.config import EnvConfig
-from acc_gym.envs.observation import B0, B1, append_features, feature_bounds, feature_names
+from acc_gym.envs.observation import B0, B1, append_features, feature_bounds
 from acc_gym.envs.reward import CriteriaReward, StepIndicators
 from acc_gym.evaluation.scoring import judged_tau1, score_episode
 from acc_gym.evaluation.trace import EgoTrace
@@ -165,10 +165,11 @@ class EpisodeBatch:
 
     # ------------------------------------------------------------------ observation
     def observe(self, low=None, high=None, dtype=np.float64) -> np.ndarray:
-        """Observations ``(n, 7)`` or ``(n, 11)`` with V2V (see the environment docstring),
-        clipped to ``[low, high]`` when given (the observation space's bounds), as ``dtype``."""
+        """Observations ``(n, 7)`` or ``(n, 11)`` with V2V (see the environment docstring), and
+        from version 1 the safety-margin features after them, clipped to ``[low, high]`` when
+        given (the observation space's bounds), as ``dtype``."""
         m = 11 if self.config.v2v else 7
-        extra = len(feature_names(self.config.v2v)) if self.config.version >= 1 else 0
+        extra = self._feature_bounds[0].shape[0]
         low = np.full(m + extra, -np.inf) if low is None else np.asarray(low, dtype=float)
         high = np.full(m + extra, np.inf) if high is None else np.asarray(high, dtype=float)
         out = np.empty((self.n, m), dtype=dtype if not extra else float)
@@ -241,9 +242,10 @@ class EpisodeBatch:
         rows, ended = np.empty((2, n), dtype=np.int64)
         if self.obs_bounds is not None:
             low, high = self.obs_bounds
-            m0 = low.shape[0] - self._feature_bounds[0].shape[0]  # the v0 fields (all of them for version 0)
+            extra = self._feature_bounds[0].shape[0]  # the safety-margin features (none for version 0)
+            m0 = low.shape[0] - extra  # the v0 fields, which the kernel writes
             low, high = low[:m0], high[:m0]
-            obs = np.empty((n, m0), dtype=np.float32 if m0 == self.obs_bounds[0].shape[0] else float)
+            obs = np.empty((n, m0), dtype=float if extra else np.float32)
         else:
             low = high = self._no_bounds
             obs = np.empty((0, 1), dtype=np.float32)
@@ -252,7 +254,7 @@ class EpisodeBatch:
                                    self.lane_width, self.n_lanes, self._rec_arr, obs_all, self.set_speed,
                                    self.time_gap, float(self.config.sensor_range), bool(self.config.v2v), low, high,
                                    obs)
-        if obs.shape[0] and obs.shape[1] < self.obs_bounds[0].shape[0]:
+        if obs.shape[0] and self._feature_bounds[0].shape[0]:
             obs = self._with_features(obs, np.float32)
         self.last_obs = obs if obs.shape[0] else None
         self.last_rows = (fl, bo, terms_arr)  # the step's criteria rows (and default reward terms) as arrays
