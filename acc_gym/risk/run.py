@@ -84,7 +84,7 @@ def env_for(scenario_id: str) -> str:
 
     fam = scenario_type(scenario_id).family
     for env_id, (families, settings) in ENV_IDS.items():
-        if not settings and fam in families:  # the -v0 id of the family (estimates keep v0's reward-free contract)
+        if not settings and fam in families:  # risk estimates run on the family's -v0 id
             return env_id
     raise ValueError(f"no environment runs the {fam!r} family of {scenario_id!r}")
 
