@@ -179,11 +179,16 @@ class EpisodeBatch:
 
     def _with_features(self, obs0: np.ndarray, dtype) -> np.ndarray:
         """Version 1: the v0 observation ``obs0`` ``(n, m)`` with the safety-margin features
-        appended (:func:`acc_gym.envs.observation.append_features`; clipped to their bounds)."""
+        appended (:func:`acc_gym.envs.observation.append_features`; clipped to their bounds).
+
+        The features are computed from the fields as emitted (rounded to ``dtype``, float32 in
+        the envs), so they are exactly what :func:`~acc_gym.envs.observation.margin_features`
+        computes from the emitted ``-v0`` fields: a ``-v1`` policy given a ``-v0`` observation
+        acts bit for bit as on the ``-v1`` one (:class:`acc_gym_agents.rl.policy.SB3Policy`)."""
         low, high = self._feature_bounds
         out = np.empty((obs0.shape[0], obs0.shape[1] + low.shape[0]))
-        append_features(np.ascontiguousarray(obs0, dtype=float), float(self.config.sensor_range), B0, B1, low, high,
-                        out)
+        fields = np.ascontiguousarray(obs0.astype(dtype, copy=False), dtype=float)
+        append_features(fields, float(self.config.sensor_range), B0, B1, low, high, out)
         return out.astype(dtype, copy=False)
 
     # ------------------------------------------------------------------ step

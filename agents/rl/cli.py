@@ -46,6 +46,9 @@ class _Train:
         p_tr.add_argument("--train-scoring", default=None,
                           help='JSON scoring settings for the training environments only (reward, termination, score '
                                'bonus), e.g. \'{"lead_margin": 1.0}\'; evaluations use the default scoring')
+        p_tr.add_argument("--torch-threads", type=int, default=1,
+                          help="torch's threads for this run (default 1: faster for these small networks, and "
+                               "the count the shipped results were trained with; 0: torch's default)")
         p_tr.add_argument("--algo-kwargs", default=None,
                           help='JSON keyword arguments of the algorithm, e.g. \'{"policy_kwargs": {"log_std_init": -2}}\' '
                                '(without it, a plain run takes the tuned hyperparameters of the algorithm and env id '
@@ -80,7 +83,7 @@ class _Train:
                         max_overspeed=args.max_overspeed,
                         score_bonus=args.score_bonus,
                         train_scoring=json.loads(args.train_scoring) if args.train_scoring else None,
-                        mix=mix, **env_settings)
+                        mix=mix, torch_threads=args.torch_threads or None, **env_settings)
         except (ValueError, TypeError) as exc:
             parser.error(str(exc))
         final = json.loads((run / "manifest.json").read_text())["final_evaluation"]

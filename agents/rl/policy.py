@@ -8,6 +8,13 @@ its manifest, :mod:`acc_gym_agents.rl.residual`) executes ``clip(base(obs) + sca
 when ``shield`` is set), as in training. A PPO run also holds its actor exported to
 numpy (``policy.npz``, :mod:`acc_gym_agents.rl.mlp`), which :func:`load_policy` prefers: it needs
 neither torch nor stable-baselines3.
+
+**A ``-v1`` policy drives anywhere.** A run trained on a ``-v1`` id saw the ``-v0`` fields
+followed by the safety-margin features (:mod:`acc_gym.envs.observation`), which are a pure
+function of those fields and the sensor range. Given the ``-v0`` fields alone (a ``-v0``
+id, a suite, the leaderboard), such a policy computes the features itself with its
+training env's sensor range and acts exactly as on the ``-v1`` observation; given the
+``-v1`` observation it uses it as it is. Any other width is an error naming both.
 """
 
 from __future__ import annotations
@@ -36,8 +43,10 @@ class SB3Policy:
 
     def __init__(self, model, mean: np.ndarray, var: np.ndarray, clip: float = 10.0, eps: float = 1e-8,
                  residual: str | None = None, residual_scale: float | None = None, shield: str | bool | None = None,
-                 residual_kwargs: dict | None = None, max_overspeed: float | None = None):
+                 residual_kwargs: dict | None = None, max_overspeed: float | None = None,
+                 sensor_range: float | None = None):
         self.model, self.mean, self.var, self.clip, self.eps = model, mean, var, clip, eps
+        self.sensor_range = None if sensor_range is None else float(sensor_range)  # [m] set: a -v1 policy
         self.residual, self.residual_scale, self.base = residual, residual_scale, None
         self.shield = check_shield(shield)
         self.max_overspeed = None
@@ -51,8 +60,24 @@ class SB3Policy:
     def reset(self) -> None:
         pass
 
-    def normalise(self, obs) -> np.ndarray:
+    def inputs(self, obs) -> np.ndarray:
+        """The observation as the model was trained on it: a ``-v1`` policy given the ``-v0``
+        fields gets the margin features appended (computed in float64 from the float32 fields,
+        as the env computes them)."""
         o = np.asarray(obs, dtype=np.float32)
+        width = self.mean.shape[-1]
+        if o.shape[-1] != width and self.sensor_range is not None and o.shape[-1] in (7, 11):
+            from acc_gym.envs.observation import margin_features
+
+            o = margin_features(o, self.sensor_range).astype(np.float32)
+        if o.shape[-1] != width:
+            kind = "the -v0 fields or the -v1 observation" if self.sensor_range is not None else "its training observation"
+            raise ValueError(f"observation has {o.shape[-1]} fields (shape {o.shape}); this policy takes {width} "
+                             f"({kind})")
+        return o
+
+    def normalise(self, obs) -> np.ndarray:
+        o = self.inputs(obs)
         return np.clip((o - self.mean) / np.sqrt(self.var + self.eps), -self.clip, self.clip).astype(np.float32)
 
     def predict(self, obs, state=None, episode_start=None, deterministic: bool = True):
@@ -111,7 +136,18 @@ def load_policy(path, backend: str | None = None) -> SB3Policy:
     return SB3Policy(model, rms["mean"], rms["var"], float(rms["clip"]), residual=residual,
                      residual_scale=manifest.get("residual_scale") if residual is not None else None,
                      shield=manifest.get("shield"), residual_kwargs=manifest.get("residual_kwargs"),
-                     max_overspeed=manifest.get("max_overspeed"))
+                     max_overspeed=manifest.get("max_overspeed"), sensor_range=sensor_range_of(manifest))
+
+
+def sensor_range_of(manifest: dict) -> float | None:
+    """The sensor range [m] of a run trained on a ``-v1`` observation (its env settings'
+    ``version`` 1), else None."""
+    settings = manifest.get("env_settings") or {}
+    if settings.get("version", 0) != 1:
+        return None
+    from acc_gym.envs.config import EnvConfig
+
+    return float(settings.get("sensor_range", EnvConfig.sensor_range))
 
 
 def load_run(path, algo: str | None = None):

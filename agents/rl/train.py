@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from acc_gym._io import atomic_write
-from acc_gym_agents.rl.policy import ALGOS, MANIFEST_FILE, MODEL_FILE, RMS_FILE, SB3Policy
+from acc_gym_agents.rl.policy import ALGOS, MANIFEST_FILE, MODEL_FILE, RMS_FILE, SB3Policy, sensor_range_of
 
 EVAL_SEED_OFFSET = 1_000_003
 
@@ -71,6 +71,12 @@ def mix_settings(mix: dict) -> dict:
     return mixture(mix)
 
 
+def _torch_threads() -> int:
+    import torch
+
+    return int(torch.get_num_threads())
+
+
 DEFAULT_TIMESTEPS = 100_000  # without tuned hyperparameters (acc_gym_agents.rl.hyperparams)
 DEFAULT_NUM_ENVS = 8
 
@@ -91,7 +97,8 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
           eval_episodes: int = 5, progress: bool = False, algo_kwargs: dict | None = None,
           residual: str | None = None, residual_scale: float = 0.3, shield: str | bool | None = None,
           residual_kwargs: dict | None = None, max_overspeed: float | None = None, score_bonus: float = 0.0,
-          mix: dict | None = None, train_scoring: dict | None = None, **env_settings) -> Path:
+          mix: dict | None = None, train_scoring: dict | None = None, torch_threads: int | None = 1,
+          **env_settings) -> Path:
     """Train ``algo`` (``ppo``, ``sac``, ``td3``) and write the run directory; returns its path.
 
     Tuned defaults: a plain run (``algo_kwargs`` None and no ``residual``) of an algorithm and
@@ -115,6 +122,12 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
     ``{"lead_margin": 1.0}``; the evaluations, like every user of the run, score with the
     environment's own scoring, so they stay comparable with other controllers.
 
+    ``torch_threads``: torch's intra-op threads for this run (``torch.set_num_threads``; None
+    leaves torch's default, one per core). One is the default because the networks are small:
+    measured on 2 cores, three runs with torch's default threads each ran 4-6 times slower
+    than with one thread, and the thread count changes the floating-point order of the
+    updates, so a run is reproducible only at the thread count recorded in its manifest.
+
     ``env_id`` may be module-qualified (``"acc_gym:acc_gym/CarFollowing-v0"``); the run's
     manifest records the registered (plain) id."""
     import gymnasium as gym
@@ -128,6 +141,19 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
 
     if algo not in ALGOS:
         raise ValueError(f"unknown algorithm {algo!r}; use one of {list(ALGOS)}")
+    if torch_threads is not None:
+        if int(torch_threads) != torch_threads or torch_threads < 1:
+            raise ValueError(f"torch_threads must be a positive integer or None, got {torch_threads!r}")
+        import torch
+
+        previous_threads = torch.get_num_threads()
+        torch.set_num_threads(int(torch_threads))  # restored when the run ends
+        try:
+            return train(algo, env_id, timesteps, seed, out, num_envs, eval_freq, eval_episodes, progress,
+                         algo_kwargs, residual, residual_scale, shield, residual_kwargs, max_overspeed,
+                         score_bonus, mix, train_scoring, torch_threads=None, **env_settings)
+        finally:
+            torch.set_num_threads(previous_threads)
     from acc_gym.envs.registration import resolve_env_id
 
     env_id = resolve_env_id(env_id)  # plain or "acc_gym:"-qualified; ValueError naming an unknown id
@@ -189,7 +215,8 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
         rms = venv.obs_rms
         policy = SB3Policy(model if actor is None else actor, rms.mean.copy(), rms.var.copy(), venv.clip_obs, residual=residual,
                            residual_scale=residual_scale if residual is not None else None, shield=shield,
-                           residual_kwargs=residual_kwargs, max_overspeed=max_overspeed)
+                           residual_kwargs=residual_kwargs, max_overspeed=max_overspeed,
+                           sensor_range=sensor_range_of({"env_settings": settings}))
         summary = evaluate(policy, env_id, episodes=eval_episodes, seed=int(seed) + EVAL_SEED_OFFSET, **env_settings)
         entry = {"timesteps": step, "mean_score": summary["mean_score"], "share_qualified": summary["share_qualified"],
                  "collisions": summary["collisions"]}
@@ -249,6 +276,7 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
                 "residual_scale": float(residual_scale) if residual is not None else None,
                 "shield": shield, "residual_kwargs": residual_kwargs or None, "max_overspeed": max_overspeed,
                 "score_bonus": float(score_bonus), "mix": dict(mix) if mix else None,
+                "torch_threads": _torch_threads(),
                 "train_scoring": dict(train_scoring) if train_scoring else None}
     _atomic_write(out / MANIFEST_FILE, json.dumps(manifest, indent=1, default=str).encode())
     venv.close()

@@ -31,11 +31,15 @@ def test_adapter_resets_in_the_same_step_and_keeps_the_terminal_observation():
 
 
 def test_tiny_ppo_run_saves_reloads_and_is_scored_through_the_same_path(tmp_path):
+    import torch
+
+    before = torch.get_num_threads()
     run = train("ppo", "acc_gym/NCAP-v0", timesteps=256, seed=3, out=tmp_path / "ppo", num_envs=4,
                 eval_episodes=2, algo_kwargs={"n_steps": 64, "batch_size": 64})
     manifest = json.loads((run / "manifest.json").read_text())
     assert manifest["algo"] == "ppo" and manifest["timesteps"] >= 256 and manifest["seed"] == 3
     assert manifest["eval_seed"] == 3 + EVAL_SEED_OFFSET and manifest["versions"]["stable-baselines3"]
+    assert manifest["torch_threads"] == 1 and torch.get_num_threads() == before  # one thread, then restored
     evals = json.loads((run / "evaluations.json").read_text())
     assert len(evals) >= 2 and evals[-1] == manifest["final_evaluation"]
     assert len(list((run / "checkpoints").iterdir())) == len(evals)
@@ -72,3 +76,24 @@ def test_bad_references_and_runs(tmp_path):
         load_controller(str(tmp_path / "missing.zip"))
     with pytest.raises(ValueError, match="unknown algorithm"):
         train("dqn", out=tmp_path / "x")
+    with pytest.raises(ValueError, match="torch_threads must be a positive integer or None, got 0"):
+        train("ppo", out=tmp_path / "x", torch_threads=0)
+
+
+def test_a_v1_policy_given_the_v0_fields_drives_exactly_as_on_the_v1_observation(tmp_path):
+    # the margin features are a pure function of the emitted -v0 fields (float32) and the sensor
+    # range, so the policy computes them itself on a -v0 id, a suite or the leaderboard
+    run = train("ppo", "acc_gym/SingleLane-v1", timesteps=256, seed=5, out=tmp_path / "v1", num_envs=4,
+                eval_episodes=1, algo_kwargs={"n_steps": 64, "batch_size": 64})
+    policy = load_policy(run)
+    assert policy.sensor_range == 200.0 and policy.mean.shape == (13,)
+    for sid in ("singlelane/2/cut-in", "carfollowing/60", "stopandgo"):
+        v0 = evaluate(policy, "acc_gym/SingleLane-v0", episodes=2, seed=4, scenarios=(sid,))
+        v1 = evaluate(policy, "acc_gym/SingleLane-v1", episodes=2, seed=4, scenarios=(sid,))
+        assert v0["scores"] == v1["scores"], sid
+    with pytest.raises(ValueError, match="observation has 9 fields .* this policy takes 13"):
+        policy.predict(np.zeros(9, np.float32))
+    assert load_policy(tmp_path / "v1", backend="sb3").sensor_range == 200.0
+    v0_run = SB3Policy(policy.model, policy.mean[:7], policy.var[:7])  # a -v0 policy never appends
+    with pytest.raises(ValueError, match="observation has 13 fields"):
+        v0_run.predict(np.zeros(13, np.float32))
