@@ -4,14 +4,16 @@
         --seeds 0 1 2 --runs /tmp/rl_curves
 
 trains each (algorithm, env id, seed) with ``acc-gym train``'s tuned defaults (no
-``--algo-kwargs``: the rl-zoo3 files), one run at a time on one torch thread, and writes
+``--algo-kwargs``: the rl-zoo3 files), each run on one torch thread (``--jobs N`` runs N at
+once, each in its own process; results do not depend on N), and writes
 
 * ``--json`` (default ``agents/rl/curves.json``): per run the steps and, at each
   checkpoint, the deterministic evaluation's mean score, share qualified and collisions
   (``--eval-episodes`` episodes on the run's evaluation seed, ``seed + 1_000_003``, as
   ``acc-gym train`` does), plus the last and best mean score, the wall time and -- with
   ``--heldout SEED`` -- the final policy's deterministic evaluation on that seed
-  (``--heldout-episodes`` episodes per env id, e.g. ``CarFollowing-v0=100 SingleLane-v0=300``);
+  (``--heldout-episodes`` episodes per env id, e.g. ``CarFollowing-v1=100 SingleLane-v1=300``),
+  and on each of ``--heldout-envs``'s other ids under ``heldout_other_envs``;
 * ``--png`` (default ``agents/rl/curves.png``): mean score and share qualified against steps,
   one panel per env id, a line per run.
 
@@ -37,9 +39,18 @@ def run_name(algo: str, env_id: str, seed: int) -> str:
     return f"{algo}_{env_id.split('/')[-1]}_s{seed}"
 
 
+def _episodes(heldout_episodes: dict, env_id: str) -> int:
+    return int(heldout_episodes.get(env_id.split("/")[-1], heldout_episodes.get(env_id, 100)))
+
+
 def curve(algo: str, env_id: str, seed: int, runs: Path, eval_freq: int | None, eval_episodes: int,
-          heldout: int | None, heldout_episodes: dict, retrain: bool = False, timesteps: int | None = None) -> dict:
+          heldout: int | None, heldout_episodes: dict, retrain: bool = False, timesteps: int | None = None,
+          heldout_envs: tuple = ()) -> dict:
     """Train (or read) one run and return its curve entry."""
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    import torch
+
+    torch.set_num_threads(1)
     from acc_gym.evaluation.runner import evaluate
     from acc_gym_agents.rl.hyperparams import defaults
     from acc_gym_agents.rl.train import train
@@ -66,11 +77,21 @@ def curve(algo: str, env_id: str, seed: int, runs: Path, eval_freq: int | None, 
              "last_within_5_of_best": max(scores) - scores[-1] <= 5.0,
              "train_wall_time_s": manifest["train_wall_time_s"]}
     if heldout is not None:
-        n = int(heldout_episodes.get(env_id.split("/")[-1], heldout_episodes.get(env_id, 100)))
-        s = evaluate(str(out), env_id, episodes=n, seed=int(heldout))
-        entry["heldout"] = {"seed": int(heldout), "episodes": n, "mean_score": s["mean_score"],
-                            "share_qualified": s["share_qualified"], "collisions": s["collisions"]}
+        def score(on: str) -> dict:
+            n = _episodes(heldout_episodes, on)
+            s = evaluate(str(out), on, episodes=n, seed=int(heldout))
+            return {"seed": int(heldout), "episodes": n, "mean_score": s["mean_score"],
+                    "share_qualified": s["share_qualified"], "collisions": s["collisions"]}
+
+        entry["heldout"] = score(env_id)
+        others = [e for e in heldout_envs if e != env_id]
+        if others:  # the same final policy on the other ids (a -v1 policy runs on any: it derives its features)
+            entry["heldout_other_envs"] = {e: score(e) for e in others}
     return entry
+
+
+def _curve_job(kwargs: dict) -> dict:
+    return curve(**kwargs)
 
 
 def plot(data: dict, png: Path) -> None:
@@ -117,6 +138,10 @@ def main(argv=None) -> int:
     ap.add_argument("--heldout", type=int, default=None, help="held-out evaluation seed of the final policies")
     ap.add_argument("--heldout-episodes", nargs="+", default=["CarFollowing-v0=100", "SingleLane-v0=300"],
                     metavar="ENV=N")
+    ap.add_argument("--heldout-envs", nargs="+", default=[],
+                    help="also score each final policy on these env ids (held-out seed, --heldout-episodes)")
+    ap.add_argument("--jobs", type=int, default=1,
+                    help="runs trained at once, each in its own process on one torch thread (at most the cores)")
     ap.add_argument("--json", default=str(DEFAULT_JSON))
     ap.add_argument("--png", default=str(DEFAULT_PNG))
     ap.add_argument("--plot-only", action="store_true")
@@ -126,28 +151,39 @@ def main(argv=None) -> int:
     if args.plot_only:
         plot(json.loads(Path(args.json).read_text()), Path(args.png))
         return 0
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
-    import torch
-
+    os.environ.setdefault("OMP_NUM_THREADS", "1")  # inherited by --jobs workers
     from acc_gym._io import atomic_write
 
-    torch.set_num_threads(1)
     held = {k: v for k, v in (h.split("=", 1) for h in args.heldout_episodes)}
     data = {"curves": []}
     if args.merge and Path(args.json).is_file():
         data = json.loads(Path(args.json).read_text())
     key = lambda c: (c["algo"], c["env_id"], c["seed"])  # noqa: E731
-    for algo in args.algos:
-        for env_id in args.envs:
-            for seed in args.seeds:
-                t0 = time.time()
-                c = curve(algo, env_id, seed, Path(args.runs), args.eval_freq, args.eval_episodes, args.heldout,
-                          held, args.retrain, args.timesteps)
-                data["curves"] = [d for d in data["curves"] if key(d) != key(c)] + [c]
-                print(f"{algo} {env_id} seed {seed}: last {c['last_mean_score']:.1f} best {c['best_mean_score']:.1f} "
-                      f"qualified {c['share_qualified'][-1]:.0%} ({time.time() - t0:.0f} s)"
-                      + (f"; held-out {c['heldout']}" if "heldout" in c else ""), file=sys.stderr)
-                atomic_write(args.json, json.dumps(data, indent=1))  # a killed run keeps the finished curves
+    jobs = [dict(algo=algo, env_id=env_id, seed=seed, runs=Path(args.runs), eval_freq=args.eval_freq,
+                 eval_episodes=args.eval_episodes, heldout=args.heldout, heldout_episodes=held,
+                 retrain=args.retrain, timesteps=args.timesteps, heldout_envs=tuple(args.heldout_envs))
+            for algo in args.algos for env_id in args.envs for seed in args.seeds]
+    if args.jobs < 1:
+        ap.error(f"--jobs must be at least 1, got {args.jobs}")
+    t0 = time.time()
+
+    def record(c: dict) -> None:
+        data["curves"] = [d for d in data["curves"] if key(d) != key(c)] + [c]
+        print(f"{c['algo']} {c['env_id']} seed {c['seed']}: last {c['last_mean_score']:.1f} best "
+              f"{c['best_mean_score']:.1f} qualified {c['share_qualified'][-1]:.0%} ({time.time() - t0:.0f} s)"
+              + (f"; held-out {c['heldout']}" if "heldout" in c else ""), file=sys.stderr)
+        atomic_write(args.json, json.dumps(data, indent=1))  # a killed run keeps the finished curves
+
+    if args.jobs == 1:
+        for job in jobs:
+            record(curve(**job))
+    else:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+            for fut in as_completed([pool.submit(_curve_job, job) for job in jobs]):
+                record(fut.result())
     data["curves"].sort(key=key)
     from acc_gym_agents.rl.train import _versions
 

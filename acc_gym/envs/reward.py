@@ -65,6 +65,7 @@ class StepIndicators:
     v_lead: np.ndarray | None = None  # [m/s]
     tau1: np.ndarray | None = None  # [s]
     steps_left: np.ndarray | None = None  # steps the scenario still had to run after this one
+    sensor_range: float | None = None  # [m] the radar's range: a vehicle beyond it is not in view
 
 
 def _check_weights(reward, positive: tuple[str, ...]) -> None:
@@ -180,7 +181,7 @@ class MarginReward:
                     step (:attr:`max_step_cost`), ``steps_left`` the steps the scenario
                     still had to run
     lag             ``-w x / (1 + x)``, ``x = (gap - D) / D``, while a followable vehicle      0.5
-                    is ahead beyond ``D = 1.2 tau1 v_lead + 5 m`` (any distance)
+                    is in view (within the sensor range) beyond ``D = 1.2 tau1 v_lead + 5 m``
     ==============  ====================================================================  ==========
 
     The comfort and jerk terms count ``|a|`` up to 9 m/s^2 and the jerk up to 30 m/s^3, and
@@ -207,6 +208,14 @@ class MarginReward:
       Here the speed term keeps a slope beyond 20 % and also applies while far behind a
       followable vehicle (an ACC drives at its set speed until it closes in), and the lag
       term grows without a plateau.
+    * **Only what the radar sees.** The lag term counts a vehicle in view only. Beyond the
+      sensor range the ego cannot know there is anything to catch up with, and an ACC then
+      holds its set speed (ISO 15622's speed control); a lag counted there paid a policy to
+      drive above its set speed whenever nothing was in view, in case a lead lurked beyond
+      the range: policies trained so drove 2-9 m/s over their set speed in free flow and ran
+      into cut-ins that the linear ACC, at its set speed, met at a safe gap (measured on
+      ``SingleLane-v1``, issue 33). Out of view the speed term alone applies (its optimum
+      is the set speed), so a parked ego or one far behind still has a gradient.
     """
 
     band: float = 1.0
@@ -241,9 +250,9 @@ class MarginReward:
                 + self.jerk * (self.JERK_COUNTED / self.jerk_scale) ** 2 + self.safety + self.lag)
 
     def __call__(self, s: StepIndicators) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        if s.followable is None or s.v_lead is None or s.tau1 is None:
-            raise ValueError("MarginReward needs the indicators followable, v_lead and tau1 (acc_gym's environments "
-                             "give them)")
+        if s.followable is None or s.v_lead is None or s.tau1 is None or s.sensor_range is None:
+            raise ValueError("MarginReward needs the indicators followable, v_lead, tau1 and sensor_range (acc_gym's "
+                             "environments give them)")
         v = np.asarray(s.v, dtype=float)
         following = np.asarray(s.following, dtype=bool)
         followable = np.asarray(s.followable, dtype=bool)
@@ -273,7 +282,7 @@ class MarginReward:
                                   / self.jerk_scale) ** 2,
             "safety": -self.safety * np.asarray(s.violation, dtype=float),
             "collision": -np.asarray(s.collision, dtype=float) * (self.collision + self.max_step_cost * steps_left),
-            "lag": -self.lag * lag,
+            "lag": -self.lag * np.where(gap <= s.sensor_range, lag, 0.0),  # only what the radar sees
         }
         terms = {k: np.asarray(val, dtype=float) for k, val in terms.items()}
         return sum(terms.values()), terms

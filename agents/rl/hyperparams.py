@@ -17,7 +17,13 @@ rl-zoo3 keys that are not keyword arguments of the algorithm:
 * ``policy`` -- always ``MlpPolicy`` here;
 * ``normalize`` -- rl-zoo3's ``VecNormalize`` settings: ``acc-gym train`` always
   normalises observations; ``"dict(norm_obs=True, norm_reward=True)"`` scales the training
-  rewards too (:func:`normalize_settings`).
+  rewards too (:func:`normalize_settings`);
+* ``env_kwargs`` -- keyword arguments of ``gym.make`` for the *training* environments
+  (:func:`env_kwargs`), e.g. the scenario mixture trained on,
+  ``default_scenarios: {carfollowing/varied: 0.4, singlelane/1/free-flow: 0.1, ...}`` (shares
+  of scenario ids or families, as the ``-v1`` ids declare theirs). ``acc-gym train`` scores
+  its checkpoints on the id's own scenarios, the distribution a user is scored on;
+  rl-zoo3 passes them to its evaluation environment too (its selection only).
 
 Values rl-zoo3 writes as strings are converted as rl-zoo3 converts them: ``"lin_3e-4"``
 is a learning rate (or clip range) falling linearly from 3e-4 to 0 over training, and
@@ -30,7 +36,7 @@ from __future__ import annotations
 from pathlib import Path
 
 DIRECTORY = Path(__file__).resolve().parent / "hyperparams"
-ZOO_ONLY = ("n_envs", "n_timesteps", "policy", "normalize")  # rl-zoo3 keys that are not algorithm kwargs
+ZOO_ONLY = ("n_envs", "n_timesteps", "policy", "normalize", "env_kwargs")  # rl-zoo3 keys that are not algorithm kwargs
 SCHEDULED = ("learning_rate", "clip_range")  # keys rl-zoo3 accepts "lin_<x>" for
 
 
@@ -113,6 +119,16 @@ def normalize_settings(value, gamma: float = 0.99) -> dict:
     return out
 
 
+def env_kwargs(entry: dict) -> dict:
+    """The entry's ``env_kwargs`` (``{}`` without), checked to be a mapping of setting names."""
+    value = entry.get("env_kwargs") or {}
+    if isinstance(value, str):
+        value = eval(value, {"__builtins__": {}}, {"dict": dict})  # rl-zoo3's convention
+    if not isinstance(value, dict) or not all(isinstance(k, str) for k in value):
+        raise ValueError(f"env_kwargs must be a mapping of environment settings, got {value!r}")
+    return dict(value)
+
+
 def to_sb3(entry: dict) -> dict:
     """An rl-zoo3 entry (or ``--algo-kwargs``) as keyword arguments of the SB3 algorithm."""
     out = {}
@@ -137,4 +153,4 @@ def defaults(algo: str, env_id: str) -> dict | None:
         raise ValueError(f"{path(algo)}: {env_id}: acc-gym train uses MlpPolicy, got {entry['policy']!r}")
     normalize_settings(entry.get("normalize"))  # a ValueError for settings acc-gym train cannot honour
     return {"entry": dict(entry), "algo_kwargs": to_sb3(entry), "num_envs": int(entry.get("n_envs", 8)),
-            "timesteps": int(entry["n_timesteps"]), "file": str(path(algo))}
+            "timesteps": int(entry["n_timesteps"]), "file": str(path(algo)), "env_kwargs": env_kwargs(entry)}

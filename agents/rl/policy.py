@@ -140,9 +140,9 @@ def load_policy(path, backend: str | None = None) -> SB3Policy:
 
 
 def sensor_range_of(manifest: dict) -> float | None:
-    """The sensor range [m] of a run trained on a ``-v1`` observation (its env settings'
-    ``version`` 1), else None."""
-    settings = manifest.get("env_settings") or {}
+    """The sensor range [m] of a run trained on a ``-v1`` observation (its training env
+    settings' ``version`` 1), else None."""
+    settings = manifest.get("train_env_settings") or manifest.get("env_settings") or {}  # what it was trained on
     if settings.get("version", 0) != 1:
         return None
     from acc_gym.envs.config import EnvConfig

@@ -109,6 +109,10 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
     None); ``algo_kwargs={}`` asks for stable-baselines3's own defaults. Without an entry,
     ``timesteps`` defaults to 100,000 and ``num_envs`` to 8. ``algo_kwargs`` may use rl-zoo3's
     strings (``"learning_rate": "lin_3e-4"``, ``"policy_kwargs": "dict(log_std_init=-1)"``).
+    rl-zoo3's ``env_kwargs`` (in the entry or ``algo_kwargs``) are settings of the *training*
+    environments only, e.g. the scenario mixture trained on; the checkpoint evaluations
+    score on the id's own scenarios (``scenarios`` / ``weights`` / ``mix`` given here apply
+    to both and win over them).
 
     ``residual``: a base controller name (:data:`acc_gym_agents.rl.residual.BASES`, its settings
     ``residual_kwargs``) to learn a correction of, scaled by ``residual_scale``; ``shield``:
@@ -176,7 +180,11 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
             raise ValueError("give either mix or scenarios / weights, not both")
         env_settings = {**env_settings, **mix_settings(mix)}
     settings = {**spec.kwargs, **env_settings}
-    train_settings = dict(settings)
+    # rl-zoo3's env_kwargs (the tuned entry's or --algo-kwargs'; e.g. the scenario mixture trained on)
+    # shape the training envs only; settings given here win over them
+    from acc_gym_agents.rl.hyperparams import env_kwargs as zoo_env_kwargs
+
+    train_settings = {**spec.kwargs, **zoo_env_kwargs(algo_kwargs or {}), **env_settings}
     if train_scoring:
         from acc_gym.evaluation.scoring import ScoringConfig
 
@@ -216,7 +224,7 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
         policy = SB3Policy(model if actor is None else actor, rms.mean.copy(), rms.var.copy(), venv.clip_obs, residual=residual,
                            residual_scale=residual_scale if residual is not None else None, shield=shield,
                            residual_kwargs=residual_kwargs, max_overspeed=max_overspeed,
-                           sensor_range=sensor_range_of({"env_settings": settings}))
+                           sensor_range=sensor_range_of({"train_env_settings": train_settings}))
         summary = evaluate(policy, env_id, episodes=eval_episodes, seed=int(seed) + EVAL_SEED_OFFSET, **env_settings)
         entry = {"timesteps": step, "mean_score": summary["mean_score"], "share_qualified": summary["share_qualified"],
                  "collisions": summary["collisions"]}
@@ -266,6 +274,8 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
         actor.save(out / POLICY_FILE)
     manifest = {"algo": algo, "env_id": env_id, "env_settings": {k: (list(v) if isinstance(v, tuple) else v)
                                                                  for k, v in settings.items()},
+                "train_env_settings": {k: (list(v) if isinstance(v, tuple) else v) for k, v in train_settings.items()
+                                       if k != "scoring"},
                 "timesteps": int(model.num_timesteps), "seed": int(seed), "num_envs": int(num_envs),
                 "eval_seed": int(seed) + EVAL_SEED_OFFSET, "eval_episodes": int(eval_episodes),
                 "final_evaluation": final, "train_wall_time_s": wall, "versions": _versions(),

@@ -17,8 +17,8 @@ from acc_gym_agents.rl.vec_env import SB3VecEnv  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 CURVES = ROOT / "agents" / "rl" / "curves.json"
-BUDGET = {"ppo": 1_000_000, "sac": 100_000}  # the issue's budgets
-ZOO_KEYS = {"n_envs", "n_timesteps", "policy", "normalize"}
+BUDGET = {"ppo": 1_000_000, "sac": 200_000}  # the issue's budgets
+ZOO_KEYS = {"n_envs", "n_timesteps", "policy", "normalize", "env_kwargs"}
 
 
 @pytest.mark.parametrize("algo", ["ppo", "sac"])
@@ -105,6 +105,38 @@ def test_train_takes_the_tuned_defaults_and_records_them(tmp_path):
     m = json.loads((run / "manifest.json").read_text())
     assert m["hyperparams"] is None and m["algo_kwargs"] == {"n_steps": 128, "batch_size": 64}
     assert sb3.PPO.load(run / "model.zip", device="cpu").gamma == 0.99
+
+
+def test_env_kwargs_shape_the_training_envs_only(tmp_path, monkeypatch):
+    """rl-zoo3's env_kwargs (here the scenario mixture trained on) reach the training envs;
+    the checkpoint evaluations score on the id's own scenarios."""
+    import acc_gym.evaluation.runner as runner
+    import acc_gym_agents.rl.vec_env as vec_env
+
+    made, scored = [], []
+    real_init, real_evaluate = vec_env.SB3VecEnv.__init__, runner.evaluate
+
+    def init(self, num_envs, seed=0, **settings):
+        made.append(settings)
+        real_init(self, num_envs, seed=seed, **settings)
+
+    def evaluate(policy, env_id, **kw):
+        scored.append(kw)
+        return real_evaluate(policy, env_id, **kw)
+
+    monkeypatch.setattr(vec_env.SB3VecEnv, "__init__", init)
+    monkeypatch.setattr(runner, "evaluate", evaluate)
+    mixture = {"singlelane/1/free-flow": 0.5, "carfollowing/varied": 0.5}
+    run = train("ppo", "acc_gym/SingleLane-v1", timesteps=128, seed=1, out=tmp_path / "zoo", num_envs=2,
+                eval_episodes=1, algo_kwargs={"n_steps": 64, "batch_size": 64,
+                                              "env_kwargs": {"default_scenarios": mixture}})
+    assert made[0]["default_scenarios"] == mixture and made[0]["version"] == 1
+    assert scored and all("default_scenarios" not in kw for kw in scored)
+    m = json.loads((run / "manifest.json").read_text())
+    assert m["train_env_settings"]["default_scenarios"] == mixture
+    assert m["env_settings"]["default_scenarios"] == ["singlelane"]
+    with pytest.raises(ValueError, match="env_kwargs must be a mapping"):
+        hp.env_kwargs({"env_kwargs": [1, 2]})
 
 
 def test_cli_train_defaults_to_the_tuned_entry(tmp_path, capsys):
