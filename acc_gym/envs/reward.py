@@ -168,7 +168,7 @@ class MarginReward:
     band            ``+w`` on a car-following sample inside ``0 < Q < 0.2 Gapsafe``          1.0
     efficiency      ``+w max(0, 1 - |u_t - peak| / max(peak, 1 - peak))`` on a                1.0
                     car-following sample: a tent over the band, highest at ``u_t = peak``
-    speed           ``+w (1 - e)`` with ``e = |v - v_set| / (0.2 v_set)`` for ``e <= 1``,      1.0
+    speed           ``+w (1 - e)`` with ``e = |v - v_set| / (0.2 v_set)`` for ``e <= 1``,      2.0
                     ``-w slope (e - 1)`` beyond (no plateau) -- with nothing to follow in
                     view, and while far behind a vehicle it could follow
     response        ``-w clip((a + a_resp) / a_resp, 0, 1)`` while ``Q < 0``: braking less     1.0
@@ -186,7 +186,7 @@ class MarginReward:
 
     The comfort and jerk terms count ``|a|`` up to 9 m/s^2 and the jerk up to 30 m/s^3, and
     the speed term's slope stops at ``e = 5`` (a parked ego), so a step costs at most
-    :attr:`max_step_cost` (5.58 with the defaults).
+    :attr:`max_step_cost` (6.58 with the defaults).
 
     Why these changes to :class:`CriteriaReward`:
 
@@ -216,11 +216,19 @@ class MarginReward:
       into cut-ins that the linear ACC, at its set speed, met at a safe gap (measured on
       ``SingleLane-v1``, issue 33). Out of view the speed term alone applies (its optimum
       is the set speed), so a parked ego or one far behind still has a gradient.
+    * **Every kind of step pays the same at its best.** Free driving at the set speed earns
+      ``speed`` (2), following at the tent's peak inside the band earns ``band + efficiency``
+      (2). With a speed weight of 1, a following step paid twice a free one, so arriving
+      sooner at a lead was worth a fine for speeding: the policies trained so drove up to 12 m/s
+      over their set speed with nothing in view (the lag term out of view already gone) and
+      ran into cut-ins. The score judges following by the *share* of following samples in
+      the band, not their number, so with equal best payments the return's optimum is the
+      score's: the set speed when free, the band's centre when following.
     """
 
     band: float = 1.0
     efficiency: float = 1.0
-    speed: float = 1.0
+    speed: float = 2.0  # = band + efficiency: free driving at the set speed pays what following in the band pays
     response: float = 1.0
     comfort: float = 0.1
     jerk: float = 0.02

@@ -56,23 +56,25 @@ def test_terms_equal_hand_computations():
     assert reward(state(20.0, 28.0, 20.0, a=-0.5))[1]["response"] == pytest.approx(-0.75)
     assert reward(state(20.0, 28.0, 20.0, a=-2.0))[1]["response"] == 0.0
     assert reward(state(20.0, 28.0, 20.0, a=1.0))[1]["response"] == -1.0
-    # free driving at 22 m/s, set 25: e = 3 / 5 = 0.6 -> 0.4; parked: e = 5 -> -0.25 * 4 = -1
-    assert reward(state(22.0))[1]["speed"] == pytest.approx(0.4)
-    assert reward(state(0.0))[1]["speed"] == pytest.approx(-1.0)
+    # free driving at 22 m/s, set 25: e = 3 / 5 = 0.6 -> 2 (1 - 0.6) = 0.8; parked: e = 5 -> -2 * 0.25 * 4 = -2
+    assert reward(state(22.0))[1]["speed"] == pytest.approx(0.8)
+    assert reward(state(0.0))[1]["speed"] == pytest.approx(-2.0)
+    # at its best a free step pays what a following step at the tent's peak in the band pays
+    assert reward(state(25.0))[0] == pytest.approx(reward(state(20.0, 33.0, 20.0))[0]) == pytest.approx(2.0)
     # 150 m behind a lead at 15 m/s: D = 1.2 * 1.5 * 15 + 5 = 32 m, x = 118 / 32, lag -0.5 x / (1 + x);
-    # the speed term applies there too (at 25 m/s: 1)
+    # the speed term applies there too (at 25 m/s: 2)
     _, t = reward(state(25.0, 150.0, 15.0))
     x = 118.0 / 32.0
-    assert t["lag"] == pytest.approx(-0.5 * x / (1 + x)) and t["speed"] == pytest.approx(1.0)
+    assert t["lag"] == pytest.approx(-0.5 * x / (1 + x)) and t["speed"] == pytest.approx(2.0)
     # 300 m behind, beyond the 200 m sensor range: no lag (nothing to catch up with in view), the speed term
-    # alone, highest at the set speed: driving 3 m/s over it (e = 0.6) pays 0.4, not more
+    # alone, highest at the set speed: driving 3 m/s over it (e = 0.6) pays 0.8, not more
     _, t = reward(state(25.0, 300.0, 15.0))
-    assert t["lag"] == 0.0 and t["speed"] == pytest.approx(1.0)
+    assert t["lag"] == 0.0 and t["speed"] == pytest.approx(2.0)
     assert reward(state(28.0, 300.0, 15.0))[0] < reward(state(25.0, 300.0, 15.0))[0]
-    # a collision with 100 steps of the scenario left: -(100 + 5.58 * 100)
-    assert MarginReward().max_step_cost == pytest.approx(0.25 * 4 + 1 + 0.1 * 9 + 0.02 * 9 + 2 + 0.5)
+    # a collision with 100 steps of the scenario left: -(100 + 6.58 * 100)
+    assert MarginReward().max_step_cost == pytest.approx(2 * 0.25 * 4 + 1 + 0.1 * 9 + 0.02 * 9 + 2 + 0.5)
     _, t = reward(state(20.0, 0.0, 10.0, collision=True, steps_left=100))
-    assert t["collision"] == pytest.approx(-(100 + 5.58 * 100))
+    assert t["collision"] == pytest.approx(-(100 + 6.58 * 100))
 
 
 def test_no_step_costs_more_than_max_step_cost():
