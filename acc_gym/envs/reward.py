@@ -180,8 +180,9 @@ class MarginReward:
                     (terminates): ``c_max`` is the most the other terms can charge in a
                     step (:attr:`max_step_cost`), ``steps_left`` the steps the scenario
                     still had to run
-    lag             ``-w x / (1 + x)``, ``x = (gap - D) / D``, while a followable vehicle      0.5
-                    is in view (within the sensor range) beyond ``D = 1.2 tau1 v_lead + 5 m``
+    lag             ``-w f x / (1 + x)``, ``x = (gap - D) / D``, while a followable vehicle    0.5
+                    is in view (within the sensor range) beyond ``D = 1.2 tau1 v_lead + 5 m``;
+                    ``f = clip((v_set - v) / (0.2 v_set), 0, 1)`` fades it out at the set speed
     ==============  ====================================================================  ==========
 
     The comfort and jerk terms count ``|a|`` up to 9 m/s^2 and the jerk up to 30 m/s^3, and
@@ -216,6 +217,10 @@ class MarginReward:
       into cut-ins that the linear ACC, at its set speed, met at a safe gap (measured on
       ``SingleLane-v1``, issue 33). Out of view the speed term alone applies (its optimum
       is the set speed), so a parked ego or one far behind still has a gradient.
+    * **No lag at the set speed.** Behind a lead driving at about the set speed, closing in
+      at all means speeding; an ACC holds its set speed there. The lag term fades out as the
+      ego reaches its set speed (``f``), so a lag is never worth a speeding fine, and below
+      the set speed it still pulls the ego on.
     * **Every kind of step pays the same at its best.** Free driving at the set speed earns
       ``speed`` (2), following at the tent's peak inside the band earns ``band + efficiency``
       (2). With a speed weight of 1, a following step paid twice a free one, so arriving
@@ -290,7 +295,9 @@ class MarginReward:
                                   / self.jerk_scale) ** 2,
             "safety": -self.safety * np.asarray(s.violation, dtype=float),
             "collision": -np.asarray(s.collision, dtype=float) * (self.collision + self.max_step_cost * steps_left),
-            "lag": -self.lag * np.where(gap <= s.sensor_range, lag, 0.0),  # only what the radar sees
+            # only what the radar sees, and only below the set speed (closing any faster would be speeding)
+            "lag": -self.lag * np.where(gap <= s.sensor_range, lag, 0.0)
+            * np.clip((set_speed - v) / (0.2 * set_speed), 0.0, 1.0),
         }
         terms = {k: np.asarray(val, dtype=float) for k, val in terms.items()}
         return sum(terms.values()), terms

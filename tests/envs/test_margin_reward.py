@@ -61,11 +61,16 @@ def test_terms_equal_hand_computations():
     assert reward(state(0.0))[1]["speed"] == pytest.approx(-2.0)
     # at its best a free step pays what a following step at the tent's peak in the band pays
     assert reward(state(25.0))[0] == pytest.approx(reward(state(20.0, 33.0, 20.0))[0]) == pytest.approx(2.0)
-    # 150 m behind a lead at 15 m/s: D = 1.2 * 1.5 * 15 + 5 = 32 m, x = 118 / 32, lag -0.5 x / (1 + x);
-    # the speed term applies there too (at 25 m/s: 2)
-    _, t = reward(state(25.0, 150.0, 15.0))
+    # 150 m behind a lead at 15 m/s: D = 1.2 * 1.5 * 15 + 5 = 32 m, x = 118 / 32; at 20 m/s (set 25) the
+    # fade f = 5 / 5 = 1: lag -0.5 x / (1 + x), and the speed term applies there too (e = 1: 0); at 22.5 m/s
+    # f = 0.5; at the set speed no lag (closing faster would be speeding) and the speed term's 2
     x = 118.0 / 32.0
-    assert t["lag"] == pytest.approx(-0.5 * x / (1 + x)) and t["speed"] == pytest.approx(2.0)
+    _, t = reward(state(20.0, 150.0, 15.0))
+    assert t["lag"] == pytest.approx(-0.5 * x / (1 + x)) and t["speed"] == pytest.approx(0.0)
+    assert reward(state(22.5, 150.0, 15.0))[1]["lag"] == pytest.approx(-0.25 * x / (1 + x))
+    _, t = reward(state(25.0, 150.0, 15.0))
+    assert t["lag"] == 0.0 and t["speed"] == pytest.approx(2.0)
+    assert reward(state(26.0, 150.0, 15.0))[0] < reward(state(25.0, 150.0, 15.0))[0]  # speeding never pays
     # 300 m behind, beyond the 200 m sensor range: no lag (nothing to catch up with in view), the speed term
     # alone, highest at the set speed: driving 3 m/s over it (e = 0.6) pays 0.8, not more
     _, t = reward(state(25.0, 300.0, 15.0))
