@@ -35,7 +35,7 @@ scores a recorded drive (columns ``t, v, a, gap, v_lead``; see
     acc-gym leaderboard [--suite S] [--split test] [--controllers C ...] [--out leaderboard] [--workers 2]
                         [--step-budget 1] [--budget 600] [--episodes N] [--no-report] [--json]
 
-scores controllers (default: every built-in and the shipped ppo-acc), each in its own process with time budgets, on
+scores controllers (default: every built-in and the shipped ppo-acc and ppo), each in its own process with time budgets, on
 versioned suites (default: all four), prints the ranking and writes results.json,
 results.csv, leaderboard.md and report.html (see :mod:`acc_gym.leaderboard`).
 
@@ -204,7 +204,7 @@ def _main(argv=None) -> int:
     p_demo.add_argument("--json", action="store_true", help="print one JSON object")
     p_eval = sub.add_parser("evaluate", help="score a controller over episodes of an environment")
     p_eval.add_argument("controller", help="a built-in name (acc, cacc, mp-cacc, idm, gipps, gm, fuzzy, mpc, "
-                                           "constant), the shipped policy ppo-acc, module:attribute, a "
+                                           "constant), the shipped policies ppo-acc and ppo, module:attribute, a "
                                            "run directory of acc-gym train, a stable-baselines3 model file "
                                            "or an rl-zoo3 run folder")
     p_eval.add_argument("--algo", default=None, help="the algorithm of a stable-baselines3 model file or rl-zoo3 "
@@ -396,7 +396,7 @@ def _add_leaderboard_parser(sub) -> None:
                         "ACC_GYM_LEADERBOARD_SECRET); only its commitment is recorded")
     p.add_argument("--controllers", nargs="+", default=None,
                    help="built-in names, module:attribute or saved model paths (default: every built-in "
-                        "and the shipped policy ppo-acc)")
+                        "and the shipped policies ppo-acc and ppo)")
     p.add_argument("--out", default="leaderboard", help="output directory (default leaderboard/)")
     p.add_argument("--workers", type=int, default=DEFAULT_WORKERS, help="controllers run in parallel")
     p.add_argument("--step-budget", type=float, default=DEFAULT_STEP_BUDGET,

@@ -17,7 +17,8 @@ once, each in its own process; results do not depend on N), and writes
 * ``--png`` (default ``agents/rl/curves.png``): mean score and share qualified against steps,
   one panel per env id, a line per run.
 
-``--plot-only`` redraws the PNG from the JSON. Runs whose directory already holds a
+``--plot-only`` redraws the PNG from the JSON; ``--table`` prints its runs as Markdown (every
+seed's held-out results, then the median and min-max over seeds). Runs whose directory already holds a
 finished ``manifest.json`` are read, not retrained (``--retrain`` forces it).
 """
 
@@ -90,6 +91,30 @@ def curve(algo: str, env_id: str, seed: int, runs: Path, eval_freq: int | None, 
     return entry
 
 
+def table(data: dict) -> str:
+    """Markdown: every run's last / best checkpoint and its held-out results on each scored id,
+    then per algorithm and id the median and min-max over seeds (what the README shows)."""
+    import statistics
+
+    rows = ["| algo | trained for | seed | last / best checkpoint | held-out on | qualified | mean score | collisions |",
+            "|---|---|---:|---|---|---:|---:|---:|"]
+    spread: dict = {}
+    for c in sorted(data["curves"], key=lambda c: (c["algo"], c["env_id"], c["seed"])):
+        held = {c["env_id"]: c.get("heldout"), **c.get("heldout_other_envs", {})}
+        for on, h in held.items():
+            if h is None:
+                continue
+            rows.append(f"| {c['algo']} | {c['env_id'].split('/')[-1]} | {c['seed']} | {c['last_mean_score']:.1f} / "
+                        f"{c['best_mean_score']:.1f} | {on.split('/')[-1]} ({h['episodes']} ep.) | "
+                        f"{100 * h['share_qualified']:.0f} % | {h['mean_score']:.1f} | {h['collisions']} |")
+            spread.setdefault((c["algo"], c["env_id"], on), []).append(h["share_qualified"])
+    rows += ["", "| algo | trained for | held-out on | seeds | qualified: median (min-max) |", "|---|---|---|---:|---|"]
+    for (algo, env_id, on), q in sorted(spread.items()):
+        rows.append(f"| {algo} | {env_id.split('/')[-1]} | {on.split('/')[-1]} | {len(q)} | "
+                    f"{100 * statistics.median(q):.0f} % ({100 * min(q):.0f}-{100 * max(q):.0f} %) |")
+    return "\n".join(rows)
+
+
 def _curve_job(kwargs: dict) -> dict:
     return curve(**kwargs)
 
@@ -100,17 +125,24 @@ def plot(data: dict, png: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    import numpy as np
+
     envs = sorted({c["env_id"] for c in data["curves"]})
     fig, axes = plt.subplots(2, len(envs), figsize=(5.5 * len(envs), 6.5), squeeze=False, sharex="col")
     colours = {"ppo": "tab:blue", "sac": "tab:red", "td3": "tab:green"}
-    styles = ["-", "--", ":", "-."]
     for j, env_id in enumerate(envs):
-        for c in (c for c in data["curves"] if c["env_id"] == env_id):
-            seeds = sorted({d["seed"] for d in data["curves"] if d["env_id"] == env_id and d["algo"] == c["algo"]})
-            kw = dict(color=colours.get(c["algo"], "k"), ls=styles[seeds.index(c["seed"]) % len(styles)], marker=".",
-                      label=f"{c['algo']} seed {c['seed']}")
-            axes[0, j].plot(c["steps"], c["mean_score"], **kw)
-            axes[1, j].plot(c["steps"], [100 * q for q in c["share_qualified"]], **kw)
+        for algo in sorted({c["algo"] for c in data["curves"] if c["env_id"] == env_id}):
+            runs = [c for c in data["curves"] if c["env_id"] == env_id and c["algo"] == algo]
+            colour = colours.get(algo, "k")
+            for row, key, scale in ((0, "mean_score", 1.0), (1, "share_qualified", 100.0)):
+                ax = axes[row, j]
+                for c in runs:  # every seed, thin
+                    ax.plot(c["steps"], [scale * y for y in c[key]], color=colour, lw=0.6, alpha=0.45)
+                if len({tuple(c["steps"]) for c in runs}) == 1:  # the median and the min-max band over seeds
+                    y = scale * np.array([c[key] for c in runs])
+                    ax.fill_between(runs[0]["steps"], y.min(0), y.max(0), color=colour, alpha=0.15)
+                    ax.plot(runs[0]["steps"], np.median(y, 0), color=colour, lw=2,
+                            label=f"{algo}: median of {len(runs)} seeds (band: min-max)" if row == 0 else None)
         axes[0, j].set_title(env_id)
         axes[0, j].set_ylabel("mean score (deterministic)")
         axes[1, j].set_ylabel("qualified [%]")
@@ -145,11 +177,15 @@ def main(argv=None) -> int:
     ap.add_argument("--json", default=str(DEFAULT_JSON))
     ap.add_argument("--png", default=str(DEFAULT_PNG))
     ap.add_argument("--plot-only", action="store_true")
+    ap.add_argument("--table", action="store_true", help="print the JSON's runs as a Markdown table and exit")
     ap.add_argument("--retrain", action="store_true")
     ap.add_argument("--merge", action="store_true", help="keep the JSON's other runs (replace the same ones)")
     args = ap.parse_args(argv)
     if args.plot_only:
         plot(json.loads(Path(args.json).read_text()), Path(args.png))
+        return 0
+    if args.table:
+        print(table(json.loads(Path(args.json).read_text())))
         return 0
     os.environ.setdefault("OMP_NUM_THREADS", "1")  # inherited by --jobs workers
     from acc_gym._io import atomic_write

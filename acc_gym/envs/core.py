@@ -235,8 +235,7 @@ class EpisodeBatch:
                                  has_lead=bo[K.B_HAS], gap=fl[K.F_GAP], gap_safe=gs, q=q, in_band=bo[K.B_IN_BAND],
                                  following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=violation,
                                  collision=collision, a_comfort=cfg.a_x_comfort, followable=bo[K.B_FOLLOWABLE],
-                                 v_lead=fl[K.F_VLEAD], tau1=self.tau1, steps_left=self.steps - w.k,
-                                 sensor_range=float(cfg.sensor_range))
+                                 v_lead=fl[K.F_VLEAD], tau1=self.tau1, steps_left=self.steps - w.k)
             reward, terms = self.reward_fn(ind)
             reward = np.asarray(reward, dtype=float)
             if reward.shape != (n,):

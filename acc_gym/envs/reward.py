@@ -65,7 +65,6 @@ class StepIndicators:
     v_lead: np.ndarray | None = None  # [m/s]
     tau1: np.ndarray | None = None  # [s]
     steps_left: np.ndarray | None = None  # steps the scenario still had to run after this one
-    sensor_range: float | None = None  # [m] the radar's range: a vehicle beyond it is not in view
 
 
 def _check_weights(reward, positive: tuple[str, ...]) -> None:
@@ -168,7 +167,7 @@ class MarginReward:
     band            ``+w`` on a car-following sample inside ``0 < Q < 0.2 Gapsafe``          1.0
     efficiency      ``+w max(0, 1 - |u_t - peak| / max(peak, 1 - peak))`` on a                1.0
                     car-following sample: a tent over the band, highest at ``u_t = peak``
-    speed           ``+w (1 - e)`` with ``e = |v - v_set| / (0.2 v_set)`` for ``e <= 1``,      2.0
+    speed           ``+w (1 - e)`` with ``e = |v - v_set| / (0.2 v_set)`` for ``e <= 1``,      1.0
                     ``-w slope (e - 1)`` beyond (no plateau) -- with nothing to follow in
                     view, and while far behind a vehicle it could follow
     response        ``-w clip((a + a_resp) / a_resp, 0, 1)`` while ``Q < 0``: braking less     1.0
@@ -180,14 +179,13 @@ class MarginReward:
                     (terminates): ``c_max`` is the most the other terms can charge in a
                     step (:attr:`max_step_cost`), ``steps_left`` the steps the scenario
                     still had to run
-    lag             ``-w f x / (1 + x)``, ``x = (gap - D) / D``, while a followable vehicle    0.5
-                    is in view (within the sensor range) beyond ``D = 1.2 tau1 v_lead + 5 m``;
-                    ``f = clip((v_set - v) / (0.2 v_set), 0, 1)`` fades it out at the set speed
+    lag             ``-w x / (1 + x)``, ``x = (gap - D) / D``, while a followable vehicle      0.5
+                    is ahead beyond ``D = 1.2 tau1 v_lead + 5 m`` (any distance)
     ==============  ====================================================================  ==========
 
     The comfort and jerk terms count ``|a|`` up to 9 m/s^2 and the jerk up to 30 m/s^3, and
     the speed term's slope stops at ``e = 5`` (a parked ego), so a step costs at most
-    :attr:`max_step_cost` (6.58 with the defaults).
+    :attr:`max_step_cost` (5.58 with the defaults).
 
     Why these changes to :class:`CriteriaReward`:
 
@@ -209,31 +207,11 @@ class MarginReward:
       Here the speed term keeps a slope beyond 20 % and also applies while far behind a
       followable vehicle (an ACC drives at its set speed until it closes in), and the lag
       term grows without a plateau.
-    * **Only what the radar sees.** The lag term counts a vehicle in view only. Beyond the
-      sensor range the ego cannot know there is anything to catch up with, and an ACC then
-      holds its set speed (ISO 15622's speed control); a lag counted there paid a policy to
-      drive above its set speed whenever nothing was in view, in case a lead lurked beyond
-      the range: policies trained so drove 2-9 m/s over their set speed in free flow and ran
-      into cut-ins that the linear ACC, at its set speed, met at a safe gap (measured on
-      ``SingleLane-v1``, issue 33). Out of view the speed term alone applies (its optimum
-      is the set speed), so a parked ego or one far behind still has a gradient.
-    * **No lag at the set speed.** Behind a lead driving at about the set speed, closing in
-      at all means speeding; an ACC holds its set speed there. The lag term fades out as the
-      ego reaches its set speed (``f``), so a lag is never worth a speeding fine, and below
-      the set speed it still pulls the ego on.
-    * **Every kind of step pays the same at its best.** Free driving at the set speed earns
-      ``speed`` (2), following at the tent's peak inside the band earns ``band + efficiency``
-      (2). With a speed weight of 1, a following step paid twice a free one, so arriving
-      sooner at a lead was worth a fine for speeding: the policies trained so drove up to 12 m/s
-      over their set speed with nothing in view (the lag term out of view already gone) and
-      ran into cut-ins. The score judges following by the *share* of following samples in
-      the band, not their number, so with equal best payments the return's optimum is the
-      score's: the set speed when free, the band's centre when following.
     """
 
     band: float = 1.0
     efficiency: float = 1.0
-    speed: float = 2.0  # = band + efficiency: free driving at the set speed pays what following in the band pays
+    speed: float = 1.0
     response: float = 1.0
     comfort: float = 0.1
     jerk: float = 0.02
@@ -263,9 +241,9 @@ class MarginReward:
                 + self.jerk * (self.JERK_COUNTED / self.jerk_scale) ** 2 + self.safety + self.lag)
 
     def __call__(self, s: StepIndicators) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        if s.followable is None or s.v_lead is None or s.tau1 is None or s.sensor_range is None:
-            raise ValueError("MarginReward needs the indicators followable, v_lead, tau1 and sensor_range (acc_gym's "
-                             "environments give them)")
+        if s.followable is None or s.v_lead is None or s.tau1 is None:
+            raise ValueError("MarginReward needs the indicators followable, v_lead and tau1 (acc_gym's environments "
+                             "give them)")
         v = np.asarray(s.v, dtype=float)
         following = np.asarray(s.following, dtype=bool)
         followable = np.asarray(s.followable, dtype=bool)
@@ -295,9 +273,7 @@ class MarginReward:
                                   / self.jerk_scale) ** 2,
             "safety": -self.safety * np.asarray(s.violation, dtype=float),
             "collision": -np.asarray(s.collision, dtype=float) * (self.collision + self.max_step_cost * steps_left),
-            # only what the radar sees, and only below the set speed (closing any faster would be speeding)
-            "lag": -self.lag * np.where(gap <= s.sensor_range, lag, 0.0)
-            * np.clip((set_speed - v) / (0.2 * set_speed), 0.0, 1.0),
+            "lag": -self.lag * lag,
         }
         terms = {k: np.asarray(val, dtype=float) for k, val in terms.items()}
         return sum(terms.values()), terms

@@ -10,13 +10,17 @@ stable-baselines3 model instead (to fine-tune it, or to sample actions).
 * ``ppo-acc``: PPO residual on the linear ACC (k1 0.8, s0 0.5), trained on paper 004's
   single-lane generator and paper 003's car-following test; how it was trained and how
   it scores on held-out seeds: ``agents/policies/ppo_acc/README.md``.
+* ``ppo``: plain PPO from scratch (no residual, no shield, no bonus) on the ``-v1``
+  observation and reward with the shipped hyperparameters; given the ``-v0`` fields (a
+  ``-v0`` id, a suite, the leaderboard) it computes the margin features itself. How it was
+  chosen and how it scores on held-out seeds: ``agents/policies/ppo/README.md``.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-SHIPPED = {"ppo-acc": "ppo_acc"}  # name -> folder next to this file
+SHIPPED = {"ppo-acc": "ppo_acc", "ppo": "ppo"}  # name -> folder next to this file
 
 
 def shipped_path(name: str) -> Path:
@@ -36,3 +40,8 @@ def load_shipped(name: str, backend: str = "numpy"):
 def ppo_acc():
     """The shipped ``ppo-acc`` (the ``acc_gym.controllers`` entry point of that name)."""
     return load_shipped("ppo-acc")
+
+
+def ppo():
+    """The shipped ``ppo`` (the ``acc_gym.controllers`` entry point of that name)."""
+    return load_shipped("ppo")

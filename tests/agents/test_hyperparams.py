@@ -88,13 +88,15 @@ def test_zoo_strings_are_converted_as_rl_zoo3_converts_them():
         hp.to_sb3({"policy_kwargs": "__import__('os').getcwd()"})  # no builtins in scope
 
 
-def test_train_takes_the_tuned_defaults_and_records_them(tmp_path):
-    env_id = "acc_gym/CarFollowing-v0"
+@pytest.mark.parametrize("env_id", ["acc_gym/CarFollowing-v0", "acc_gym/SingleLane-v1"])
+def test_train_takes_the_tuned_defaults_and_records_them(tmp_path, env_id):
     entry = hp.load("ppo")[env_id]
     run = train("ppo", env_id, timesteps=2_000, seed=1, out=tmp_path / "tuned", num_envs=2, eval_episodes=1,
                 eval_freq=10_000)
     m = json.loads((run / "manifest.json").read_text())
     assert m["hyperparams"] == {"file": "ppo.yml", "env_id": env_id, "entry": entry}
+    for key, value in hp.env_kwargs(entry).items():  # the training envs' settings (the v1 entries' mixture)
+        assert m["train_env_settings"][key] == value and m["env_settings"].get(key) != value
     assert m["algo_kwargs"] == entry and m["num_envs"] == 2  # the given num_envs wins over n_envs
     model = sb3.PPO.load(run / "model.zip", device="cpu")
     assert model.n_steps == entry.get("n_steps", 2048) and model.gamma == entry.get("gamma", 0.99)

@@ -37,15 +37,17 @@ def test_the_numpy_actor_is_the_trained_model(name):
                                atol=1e-6)
 
 
-def test_the_shipped_policy_runs_on_the_core_install_without_torch():
+@pytest.mark.parametrize("name", sorted(SHIPPED))
+def test_the_shipped_policy_runs_on_the_core_install_without_torch(name):
     code = ("import sys\n"
             "sys.modules['torch'] = sys.modules['stable_baselines3'] = None  # importing them now fails\n"
             "from acc_gym.evaluation.runner import evaluate\n"
-            "s = evaluate('ppo-acc', 'acc_gym/CarFollowing-v0', episodes=1, seed=5)\n"
-            "print(s['collisions'], s['share_qualified'])\n")
+            f"s = evaluate({name!r}, 'acc_gym/CarFollowing-v0', episodes=2, seed=5)\n"
+            "print(s['collisions'], repr(s['mean_score']))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=False)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.split() == ["0", "1.0"]
+    here = evaluate(name, "acc_gym/CarFollowing-v0", episodes=2, seed=5)  # this process has torch
+    assert out.stdout.split() == ["0", repr(here["mean_score"])]
 
 
 def test_on_paper_003_it_qualifies_without_collision_and_beats_the_linear_acc():
@@ -88,3 +90,26 @@ def test_the_recorded_heldout_results_reproduce():
             assert results[name][family]["mean_score"] == pytest.approx(s["mean_score"], abs=SCORE_TOLERANCE)
             assert results[name][family]["share_qualified"] == s["share_qualified"]
     assert meets_bar(results, "ppo-acc") == []
+
+
+def test_ppo_drives_a_v0_id_exactly_as_its_v1_twin():
+    # given the -v0 fields it computes the margin features itself: the same episodes score the same
+    kw = {"scenarios": ("carfollowing/90", "singlelane/2/cut-in")}
+    v0 = evaluate("ppo", "acc_gym/SingleLane-v0", episodes=3, seed=5, **kw)
+    v1 = evaluate("ppo", "acc_gym/SingleLane-v1", episodes=3, seed=5, **kw)
+    assert v0["scores"] == v1["scores"] and v0["scenarios"] == v1["scenarios"]
+
+
+def test_ppo_follows_paper_003s_test_without_collision():
+    for speed in (60, 90, 120):
+        s = evaluate("ppo", "acc_gym/CarFollowing-v1", episodes=2, seed=77, scenarios=(f"carfollowing/{speed}",))
+        assert s["collisions"] == 0 and s["share_qualified"] == 1.0, (speed, s)
+
+
+@pytest.mark.slow
+def test_ppos_recorded_heldout_results_reproduce():
+    recorded = json.loads((shipped_path("ppo") / "heldout.json").read_text())
+    for env_id, s in recorded["results"].items():
+        got = evaluate("ppo", env_id, episodes=s["episodes"], seed=recorded["seed"])
+        assert got["mean_score"] == pytest.approx(s["mean_score"], abs=SCORE_TOLERANCE)
+        assert (got["share_qualified"], got["collisions"]) == (s["share_qualified"], s["collisions"])

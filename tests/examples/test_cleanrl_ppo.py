@@ -62,9 +62,9 @@ def test_a_quick_run_repeats_exactly(capsys):
 
 @pytest.mark.slow
 def test_a_full_run_learns_carfollowing_v1(tmp_path, capsys):
-    """1M steps (about 8 minutes on one core): qualified in most of 100 held-out episodes, no collision
-    (the result documented in docs/rl-training.md; the shipped SB3 settings, another implementation)."""
+    """1M steps (about 7 minutes on one core): seed 0 qualified in 98 of 100 held-out episodes with no
+    collision here (docs/rl-training.md); at least 80 % and no collision wherever it runs."""
     assert example().main(["--seed", "0", "--out", str(tmp_path)]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert out["collisions"] == 0 and out["share_qualified"] >= 0.6, out
+    assert out["collisions"] == 0 and out["share_qualified"] >= 0.8, out
     assert (tmp_path / "agent.pt").is_file() and (tmp_path / "obs_rms.npz").is_file()
