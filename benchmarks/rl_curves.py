@@ -168,7 +168,8 @@ def main(argv=None) -> int:
     ap.add_argument("--eval-freq", type=int, default=None, help="default: a tenth of the steps")
     ap.add_argument("--eval-episodes", type=int, default=30)
     ap.add_argument("--heldout", type=int, default=None, help="held-out evaluation seed of the final policies")
-    ap.add_argument("--heldout-episodes", nargs="+", default=["CarFollowing-v0=100", "SingleLane-v0=300"],
+    ap.add_argument("--heldout-episodes", nargs="+", default=["CarFollowing-v0=100", "SingleLane-v0=300",
+                                                              "CarFollowing-v1=100", "SingleLane-v1=300"],
                     metavar="ENV=N")
     ap.add_argument("--heldout-envs", nargs="+", default=[],
                     help="also score each final policy on these env ids (held-out seed, --heldout-episodes)")
