@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-torch = pytest.importorskip("torch", reason="the example needs torch (the rl extra)")
+torch = pytest.importorskip("torch", reason="the example needs torch (pip install '.[rl]' or '.[test]')")
 
 PATH = Path(__file__).resolve().parents[2] / "examples" / "cleanrl_ppo.py"
 
