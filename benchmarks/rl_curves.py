@@ -47,11 +47,7 @@ def _episodes(heldout_episodes: dict, env_id: str) -> int:
 def curve(algo: str, env_id: str, seed: int, runs: Path, eval_freq: int | None, eval_episodes: int,
           heldout: int | None, heldout_episodes: dict, retrain: bool = False, timesteps: int | None = None,
           heldout_envs: tuple = ()) -> dict:
-    """Train (or read) one run and return its curve entry."""
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
-    import torch
-
-    torch.set_num_threads(1)
+    """Train (or read) one run and return its curve entry (``train`` runs torch on one thread)."""
     from acc_gym.evaluation.runner import evaluate
     from acc_gym_agents.rl.hyperparams import defaults
     from acc_gym_agents.rl.train import train

@@ -23,6 +23,7 @@ import os
 import platform
 import tempfile
 import time
+from contextlib import contextmanager
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
@@ -71,7 +72,26 @@ def mix_settings(mix: dict) -> dict:
     return mixture(mix)
 
 
-def _torch_threads() -> int:
+@contextmanager
+def _torch_threads(n: int | None):
+    """torch's intra-op threads set to ``n`` inside the block and restored after it (None:
+    left as they are)."""
+    if n is None:
+        yield
+        return
+    if isinstance(n, bool) or int(n) != n or n < 1:
+        raise ValueError(f"torch_threads must be a positive integer or None, got {n!r}")
+    import torch
+
+    previous = torch.get_num_threads()
+    torch.set_num_threads(int(n))
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
+
+
+def _current_torch_threads() -> int:
     import torch
 
     return int(torch.get_num_threads())
@@ -134,6 +154,20 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
 
     ``env_id`` may be module-qualified (``"acc_gym:acc_gym/CarFollowing-v0"``); the run's
     manifest records the registered (plain) id."""
+    if algo not in ALGOS:
+        raise ValueError(f"unknown algorithm {algo!r}; use one of {list(ALGOS)}")
+    with _torch_threads(torch_threads):
+        return _train(algo, env_id, timesteps=timesteps, seed=seed, out=out, num_envs=num_envs, eval_freq=eval_freq,
+                      eval_episodes=eval_episodes, progress=progress, algo_kwargs=algo_kwargs, residual=residual,
+                      residual_scale=residual_scale, shield=shield, residual_kwargs=residual_kwargs,
+                      max_overspeed=max_overspeed, score_bonus=score_bonus, mix=mix, train_scoring=train_scoring,
+                      **env_settings)
+
+
+def _train(algo: str, env_id: str, timesteps, seed, out, num_envs, eval_freq, eval_episodes, progress, algo_kwargs,
+           residual, residual_scale, shield, residual_kwargs, max_overspeed, score_bonus, mix, train_scoring,
+           **env_settings) -> Path:
+    """:func:`train`'s body, on the torch threads it set."""
     import gymnasium as gym
     import stable_baselines3 as sb3
     from stable_baselines3.common.callbacks import BaseCallback
@@ -141,24 +175,8 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
 
     import acc_gym  # noqa: F401  (registers the ids)
     from acc_gym.evaluation.runner import evaluate
-    from acc_gym_agents.rl.vec_env import SB3VecEnv
-
-    if algo not in ALGOS:
-        raise ValueError(f"unknown algorithm {algo!r}; use one of {list(ALGOS)}")
-    if torch_threads is not None:
-        if int(torch_threads) != torch_threads or torch_threads < 1:
-            raise ValueError(f"torch_threads must be a positive integer or None, got {torch_threads!r}")
-        import torch
-
-        previous_threads = torch.get_num_threads()
-        torch.set_num_threads(int(torch_threads))  # restored when the run ends
-        try:
-            return train(algo, env_id, timesteps, seed, out, num_envs, eval_freq, eval_episodes, progress,
-                         algo_kwargs, residual, residual_scale, shield, residual_kwargs, max_overspeed,
-                         score_bonus, mix, train_scoring, torch_threads=None, **env_settings)
-        finally:
-            torch.set_num_threads(previous_threads)
     from acc_gym.envs.registration import resolve_env_id
+    from acc_gym_agents.rl.vec_env import SB3VecEnv
 
     env_id = resolve_env_id(env_id)  # plain or "acc_gym:"-qualified; ValueError naming an unknown id
     tuned = tuned_defaults(algo, env_id, algo_kwargs, residual)
@@ -286,7 +304,7 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
                 "residual_scale": float(residual_scale) if residual is not None else None,
                 "shield": shield, "residual_kwargs": residual_kwargs or None, "max_overspeed": max_overspeed,
                 "score_bonus": float(score_bonus), "mix": dict(mix) if mix else None,
-                "torch_threads": _torch_threads(),
+                "torch_threads": _current_torch_threads(),
                 "train_scoring": dict(train_scoring) if train_scoring else None}
     _atomic_write(out / MANIFEST_FILE, json.dumps(manifest, indent=1, default=str).encode())
     venv.close()
