@@ -39,6 +39,12 @@ scores controllers (default: every built-in and the shipped ppo-acc and ppo), ea
 versioned suites (default: all four), prints the ranking and writes results.json,
 results.csv, leaderboard.md and report.html (see :mod:`acc_gym.leaderboard`).
 
+    acc-gym string-stability CONTROLLER [--vehicles 8] [--speed 20] [--time-gap H] [--v2v]
+                             [--penetration P --drivers KIND] [--param k=v] [--lead-trace T] [--json] [--plot PATH]
+
+runs N copies of a controller in a column: its frequency response vehicle to vehicle, a
+Gunter-like disturbance, and the verdict (see :mod:`acc_gym.evaluation.string_stability`).
+
     acc-gym campaign --suite S --hours H --controller C --out DIR [--split test] [--root-seed R]
                      [--workers N | --scheduler ADDRESS|local] [--chunk-size K] [--max-chunks M] [--json]
 
@@ -226,6 +232,9 @@ def _main(argv=None) -> int:
     from acc_gym.risk import cli as risk_cli
 
     risk_cli.add_parser(sub)
+    from acc_gym.evaluation import string_stability_cli
+
+    string_stability_cli.add_parser(sub)
     plugins = cli_plugins()  # e.g. acc-gym train, from the acc_gym.cli entry points
     for plugin in plugins.values():
         plugin.add_parser(sub)
@@ -242,6 +251,8 @@ def _main(argv=None) -> int:
         return _leaderboard(args, parser)
     if args.command == "risk":
         return risk_cli.run(args, parser)
+    if args.command == "string-stability":
+        return string_stability_cli.run(args, parser)
     if args.command in ("scenarios", "score"):
         try:
             print(_scenarios(args) if args.command == "scenarios" else _score(args))

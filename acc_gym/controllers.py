@@ -93,12 +93,20 @@ def controller_factory(name: str):
             from None
 
 
-def make_controller(name: str):
-    """A new controller of the registered ``name`` (None if no such name)."""
+def make_controller(name: str, **params):
+    """A new controller of the registered ``name`` (None if no such name); ``params`` go to its
+    factory (``acc``'s gains, ``idm``'s ``a`` and ``b``, ...): one it does not take is a
+    ``ValueError`` naming it."""
     factory = controller_factory(name)
     if factory is None:
         return None
-    obj = factory()
+    if params:
+        try:
+            obj = factory(**params)
+        except TypeError as exc:
+            raise ValueError(f"controller {name!r} does not take the parameters {params!r} ({exc})") from None
+    else:
+        obj = factory()
     if not hasattr(obj, "predict"):
         raise ValueError(f"controller {name!r}: its factory returned {type(obj).__name__}, which has no "
                          f"predict(obs, deterministic=True)")

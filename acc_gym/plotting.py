@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib
 import numpy as np
 from matplotlib.backend_bases import FigureCanvasBase
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -92,6 +93,62 @@ def plot_episode(trace, b: int = 0, *, title: str | None = None, path=None, scen
     if B > 1:
         parts.append(f"scene {b}")
     fig.suptitle(" -- ".join(parts) if parts else "episode")
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
+def plot_string_stability(report, *, path=None) -> Figure:
+    """A :class:`~acc_gym.evaluation.string_stability.StringStabilityReport` as two panels:
+    ``|Gamma_i(j w)|`` against frequency for each vehicle pair (log-log, the gain 1 dashed, the
+    unstable bands shaded), and the disturbance's space-time diagram (each vehicle's position
+    in a frame moving at the operating speed, over time, coloured by its speed). ``path``: also
+    save a PNG there (atomically)."""
+    from matplotlib.collections import LineCollection
+
+    fig = Figure(figsize=(11.0, 4.5), layout="constrained")
+    ax_g, ax_st = fig.subplots(1, 2)
+    f = np.asarray(report.frequencies, dtype=float)
+    pairs = report.pair_gains.shape[1]
+    cmap = matplotlib.colormaps["viridis"]
+    for i in range(pairs):
+        g = report.pair_gains[:, i]
+        if np.any(np.isfinite(g)):
+            ax_g.plot(f, g, color=cmap(i / max(pairs - 1, 1)), lw=1.2, marker=".", ms=3,
+                      label=f"{i} -> {i + 1}" if pairs <= 10 or i in (0, pairs - 1) else None)
+    ax_g.axhline(1.0, color="k", ls="--", lw=0.9)
+    for lo, hi in report.unstable_bands:
+        ax_g.axvspan(lo, hi, color="tab:red", alpha=0.12, lw=0)
+    ax_g.set_xscale("log")
+    ax_g.set_yscale("log")
+    ax_g.set_xlabel("frequency [Hz]")
+    ax_g.set_ylabel(r"$|\Gamma_i(j\omega)| = |V_i / V_{i-1}|$")
+    verdict = {True: "string stable", False: "not string stable", None: "no verdict"}[report.string_stable]
+    ax_g.set_title(f"largest gain {report.max_gain:.3f}: {verdict}", fontsize=10)
+    ax_g.grid(True, which="both", alpha=0.3)
+    if ax_g.get_lines():
+        ax_g.legend(title="pair", fontsize=7, loc="lower left")
+    d = report.disturbance if report.disturbance is not None else report.trace
+    if d is None:
+        ax_st.text(0.5, 0.5, "no disturbance run", transform=ax_st.transAxes, ha="center", va="center")
+    else:
+        v0 = float(d.v[0, 0])
+        y = d.x - v0 * d.t[:, None]
+        norm = matplotlib.colors.Normalize(float(np.nanmin(d.v)), float(np.nanmax(d.v)) + 1e-9)
+        for i in range(d.x.shape[1]):
+            pts = np.stack([d.t, y[:, i]], axis=1)
+            lc = LineCollection(np.stack([pts[:-1], pts[1:]], axis=1), cmap="RdYlGn", norm=norm, lw=1.6)
+            lc.set_array(0.5 * (d.v[:-1, i] + d.v[1:, i]))
+            ax_st.add_collection(lc)
+        ax_st.set_xlim(float(d.t[0]), float(d.t[-1]))
+        ax_st.set_ylim(float(np.nanmin(y)) - 5.0, float(np.nanmax(y)) + 5.0)
+        fig.colorbar(matplotlib.cm.ScalarMappable(norm=norm, cmap="RdYlGn"), ax=ax_st, label="speed [m/s]")
+        ax_st.set_xlabel("time [s]")
+        ax_st.set_ylabel(f"position - {v0:g} m/s x t [m]")
+        ax_st.set_title(f"{d.name}: lead drops {d.lead_drop:.2f} m/s, last follower {d.drops[-1]:.2f} m/s",
+                        fontsize=10)
+    c = report.config
+    fig.suptitle(f"{report.controller}: {c.vehicles} vehicles at {c.speed:g} m/s, time gap {report.time_gap:g} s")
     if path is not None:
         save_figure(fig, path)
     return fig

@@ -71,24 +71,50 @@ class ModelController(_Policy):
         return f"ModelController({self.name!r})"
 
 
+_OWN = ("accel_max", "decel_max", "dt", "time_gap")  # ModelController's own settings
+
+
+def _split(name: str, kw: dict, params_type, from_scene: tuple[str, ...]) -> tuple[dict, dict]:
+    """``kw`` as (ModelController's settings, the model's parameters); a name that is neither, or
+    one the scenario sets (the set speed, the time gap), is a ``ValueError`` naming it."""
+    from dataclasses import fields
+
+    own = {k: v for k, v in kw.items() if k in _OWN}
+    model = {k: v for k, v in kw.items() if k not in _OWN}
+    allowed = sorted(f.name for f in fields(params_type) if f.name not in from_scene)
+    bad = sorted(set(model) - set(allowed))
+    if bad:
+        raise ValueError(f"controller {name!r} has no parameter {', '.join(map(repr, bad))}: its parameters are "
+                         f"{allowed} (and {list(_OWN)})")
+    if model:
+        params_type(**model)  # validated now, not at the first step
+    return own, model
+
+
 def cacc(**kw) -> ModelController:
     """CACC (paper 004 Eq. 2): the linear ACC plus 0.6 x the vehicle ahead's acceleration, at the
     scenario's time gap; with ``v2v=True`` the acceleration is communicated, without it estimated
-    from the vehicle ahead's speed."""
-    return ModelController("cacc", lambda vs, h, n: ACC(ACCParams(k1=0.3, k2=1.2, k3=0.6, s0=2.5, time_gap=h, v_set=vs),
-                                                         n=n), **kw)
+    from the vehicle ahead's speed. Keyword arguments: ModelController's settings and the law's
+    :class:`ACCParams` (``k1``, ``k2``, ``k3``, ``s0``, ...)."""
+    own, model = _split("cacc", kw, ACCParams, ("time_gap", "v_set", "predecessors"))
+    law = {"k1": 0.3, "k2": 1.2, "k3": 0.6, "s0": 2.5, **model}
+    return ModelController("cacc", lambda vs, h, n: ACC(ACCParams(**law, time_gap=h, v_set=vs), n=n), **own)
 
 
 def mp_cacc(**kw) -> ModelController:
     """Multi-predecessor CACC (Eq. 3): one CACC law per vehicle ahead (the second one's acceleration is
     not observed: k3 acts on the first only), the minimum taken; needs ``v2v=True``."""
-    return ModelController("mp-cacc", lambda vs, h, n: ACC(ACCParams(k1=0.3, k2=1.2, k3=0.6, s0=2.5, time_gap=h,
-                                                                     v_set=vs, predecessors=2), n=n), **kw)
+    own, model = _split("mp-cacc", kw, ACCParams, ("time_gap", "v_set", "predecessors"))
+    law = {"k1": 0.3, "k2": 1.2, "k3": 0.6, "s0": 2.5, **model}
+    return ModelController("mp-cacc", lambda vs, h, n: ACC(ACCParams(**law, time_gap=h, v_set=vs, predecessors=2),
+                                                           n=n), **own)
 
 
 def idm(**kw) -> ModelController:
-    """IDM (Treiber et al. 2000) at the scenario's set speed and time gap."""
-    return ModelController("idm", lambda vs, h, n: IDM(IDMParams(v_desired=vs, time_gap=h), n=n), **kw)
+    """IDM (Treiber et al. 2000) at the scenario's set speed and time gap; keyword arguments:
+    ModelController's settings and :class:`IDMParams` (``a``, ``b``, ``s0``, ``delta``, ``tau``)."""
+    own, model = _split("idm", kw, IDMParams, ("time_gap", "v_desired"))
+    return ModelController("idm", lambda vs, h, n: IDM(IDMParams(**model, v_desired=vs, time_gap=h), n=n), **own)
 
 
 def gipps(**kw) -> ModelController:
@@ -98,20 +124,22 @@ def gipps(**kw) -> ModelController:
     ``tau`` plus the safety margin ``theta`` (0.6 + 0.3 s), so it declares ``time_gap`` =
     0.9 s and is judged there, as paper 003 judges it (its Gapsafe takes the driver's own
     reaction time)."""
-    p = GippsParams()
-    own = p.tau + (p.tau / 2.0 if p.theta is None else p.theta)
-    kw.setdefault("time_gap", own)
-    return ModelController("gipps", lambda vs, h, n: Gipps(GippsParams(v_desired=vs), n=n), **kw)
+    own, model = _split("gipps", kw, GippsParams, ("v_desired",))
+    p = GippsParams(**model)
+    own.setdefault("time_gap", p.tau + (p.tau / 2.0 if p.theta is None else p.theta))
+    return ModelController("gipps", lambda vs, h, n: Gipps(GippsParams(**model, v_desired=vs), n=n), **own)
 
 
 def gm(**kw) -> ModelController:
     """GM / Gazis-Herman-Rothery with the free-road law (paper 003's GM)."""
-    return ModelController("gm", lambda vs, h, n: GM(GMParams(v_desired=vs), n=n), **kw)
+    own, model = _split("gm", kw, GMParams, ("v_desired",))
+    return ModelController("gm", lambda vs, h, n: GM(GMParams(**model, v_desired=vs), n=n), **own)
 
 
 def fuzzy(**kw) -> ModelController:
     """Paper 003's fuzzy-reasoning follower at the scenario's time gap."""
-    return ModelController("fuzzy", lambda vs, h, n: Fuzzy(FuzzyParams(v_desired=vs, h=h), n=n), **kw)
+    own, model = _split("fuzzy", kw, FuzzyParams, ("v_desired", "h"))
+    return ModelController("fuzzy", lambda vs, h, n: Fuzzy(FuzzyParams(**model, v_desired=vs, h=h), n=n), **own)
 
 
 def mpc(**kw) -> ModelController:

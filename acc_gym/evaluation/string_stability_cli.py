@@ -1,0 +1,88 @@
+"""``acc-gym string-stability``: is a controller string stable? (:mod:`acc_gym.evaluation.string_stability`)."""
+
+from __future__ import annotations
+
+import json
+
+from acc_gym.evaluation import string_stability as ss
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("string-stability",
+                       help="does a speed disturbance grow down a column of copies of a controller? (frequency "
+                            "response, a Gunter-like disturbance, verdict: largest gain <= 1 + %g)" % ss.TOLERANCE)
+    p.add_argument("controller", help="a registered name, module:attribute, a saved model, or 'human' (the human-like "
+                                      "drivers of --drivers alone)")
+    p.add_argument("--vehicles", type=int, default=8, help="copies behind the lead (1-100, default 8)")
+    p.add_argument("--speed", type=float, default=20.0, help="operating speed [m/s] (default 20)")
+    p.add_argument("--set-speed", type=float, default=None, help="set speed in the observation [m/s] (default: "
+                                                                  "speed + 5)")
+    p.add_argument("--time-gap", type=float, default=None, help="time gap in the observation [s] (default: the "
+                                                                 "controller's declared one, else 1.5)")
+    p.add_argument("--v2v", action="store_true", help="observe the vehicle ahead's acceleration and the second "
+                                                       "vehicle ahead (CACC)")
+    p.add_argument("--penetration", type=float, default=1.0,
+                   help="share of the positions the controller drives; human-like MPC drivers the others "
+                        "(default 1)")
+    p.add_argument("--drivers", default="typical", help="the human drivers' population (typical, atypical, "
+                                                        "naturalistic, malicious)")
+    p.add_argument("--seed", type=int, default=0, help="the human drivers' draw (and the stop-and-go trace's)")
+    p.add_argument("--frequencies", type=float, nargs="+", default=None, metavar="HZ",
+                   help="the sweep's frequencies [Hz] (default: 25 from 0.005 to 1, log-spaced)")
+    p.add_argument("--no-disturbance", action="store_true", help="skip the Gunter-like disturbance")
+    p.add_argument("--lead-trace", default=None, metavar="stopandgo|FILE.csv",
+                   help="also drive the lead on a trace: 'stopandgo' (human-like wave) or a CSV with columns t, v")
+    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="a parameter of a built-in controller (repeatable), e.g. --param k1=0.4 for acc")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--plot", default=None, metavar="PATH", help="save |Gamma| against frequency and the "
+                                                                 "disturbance's space-time diagram")
+
+
+def _params(items: list[str], parser) -> dict:
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            parser.error(f"--param {item!r}: expected NAME=VALUE")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            parser.error(f"--param {item!r}: expected NAME=VALUE with a number")
+    return out
+
+
+def run(args, parser) -> int:
+    from acc_gym.controllers import make_controller
+
+    params = _params(args.param, parser)
+    controller = args.controller
+    try:
+        if params:
+            controller = make_controller(args.controller, **params)
+            if controller is None:
+                parser.error(f"--param needs a registered controller name; {args.controller!r} is not one")
+        config = ss.PlatoonConfig(vehicles=args.vehicles, speed=args.speed, set_speed=args.set_speed,
+                                  time_gap=args.time_gap, penetration=args.penetration, drivers=args.drivers,
+                                  seed=args.seed, v2v=args.v2v)
+        trace = None if args.lead_trace is None else ss.lead_trace(args.lead_trace, args.seed)
+        report = ss.string_stability(controller, config, frequencies=args.frequencies,
+                                     disturbance=not args.no_disturbance, trace=trace, name=args.controller)
+    except (ValueError, TypeError) as exc:
+        parser.error(str(exc))
+    if args.plot:
+        from acc_gym.plotting import plot_string_stability
+
+        plot_string_stability(report, path=args.plot)
+    if args.json:
+        out = report.to_dict()
+        if params:
+            out["params"] = params
+        if args.plot:
+            out["plot"] = args.plot
+        print(json.dumps(out))
+    else:
+        print(report.summary())
+        if args.plot:
+            print(f"plot: {args.plot}")
+    return 0
