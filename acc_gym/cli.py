@@ -423,6 +423,9 @@ def _add_leaderboard_parser(sub) -> None:
                         "sampling in the same sandbox (acc-gym risk; slower)")
     p.add_argument("--risk-family", default="cut-in", help="the family of --risk (default cut-in)")
     p.add_argument("--risk-budget", type=int, default=4096, help="episodes per controller for --risk (default 4096)")
+    p.add_argument("--no-string-stability", action="store_true",
+                   help="skip the string-stability column (8 copies of each controller in a column, measured in "
+                        "the same sandbox after its episodes: a few seconds each)")
     p.add_argument("--json", action="store_true", help="print the ranking as one JSON object")
 
 
@@ -445,7 +448,9 @@ def _leaderboard(args, parser) -> int:
             print(json.dumps({"ranking": [{"controller": n, "rank": by_name[n]["rank"], "status": by_name[n]["status"],
                                            "reason": by_name[n]["reason"],
                                            "summary": by_name[n]["summary"] and by_name[n]["summary"]["overall"],
-                                           **({"risk": by_name[n].get("risk")} if args.risk else {})}
+                                           **({"risk": by_name[n].get("risk")} if args.risk else {}),
+                                           **({} if args.no_string_stability else
+                                              {"string_stability": by_name[n].get("string_stability")})}
                                           for n in results["ranking"]], "out": str(args.out)}), flush=True)
         else:
             m = results["manifest"]
@@ -463,7 +468,7 @@ def _leaderboard(args, parser) -> int:
                                   step_budget=args.step_budget, budget=args.budget, episodes=args.episodes,
                                   report=not args.no_report, progress=progress, sandbox=args.sandbox, show=show,
                                   secret=secret, risk={"family": args.risk_family, "budget": args.risk_budget}
-                                  if args.risk else None)
+                                  if args.risk else None, string_stability=not args.no_string_stability)
     except (OutputError, RuntimeError) as exc:  # a failed write, or a sandbox this machine cannot give
         print(f"acc-gym leaderboard: error: {exc}", file=sys.stderr)
         return 1

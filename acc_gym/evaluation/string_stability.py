@@ -394,7 +394,8 @@ class _Copies:
                     raise _Raised(j + 1, k, ValueError(f"answered {idx.size} observations with {raw.size} values"))
                 for r in idx[~np.isfinite(raw)]:
                     self._fail(int(r), raw[np.searchsorted(idx, r)], failed, errors, row_names, t)
-                out[idx] = np.where(np.isfinite(raw), np.clip(raw, -1.0, 1.0), 0.0)
+                # float32, as the env's action space and the sandbox's answers are
+                out[idx] = np.where(np.isfinite(raw), np.clip(raw, -1.0, 1.0), 0.0).astype(np.float32)
             return out
         for r, c in enumerate(self.copies):
             b = int(self.cells[r, 0])
@@ -415,6 +416,78 @@ class _Copies:
             errors[b] = RowError(row_names[b], int(self.cells[r, 1]) + 1, t, f"returned an action that is {what}")
 
 
+class Remote:
+    """The controller's side when its copies live in another process (the leaderboard's
+    sandbox): each controlled cell is a slot there -- a fresh copy of the controller,
+    ``reset()`` at its first call -- and ``exchange(obs, starts, slots)`` sends one step's
+    rows and returns one action per row. What the controller does wrong (it raises, answers
+    NaN, overruns its budget) is raised by ``exchange``: the measurement ends there."""
+
+    def __init__(self, exchange, cells: np.ndarray, first_slot: int):
+        self.exchange, self.cells = exchange, cells
+        # one slot per column position: its rows (one per frequency) go to one copy there when
+        # the controller is vectorised, as _Copies does here (the sandbox decides)
+        _, position = np.unique(cells[:, 1], return_inverse=True)
+        self.slots = first_slot + position.reshape(-1)
+        self.first = True
+
+    def __call__(self, obs: np.ndarray, k: int, failed: np.ndarray, errors: dict, row_names, t: float) -> np.ndarray:
+        starts = np.full(len(self.cells), self.first)
+        self.first = False
+        acts = np.asarray(self.exchange(obs.astype(float), starts, self.slots), dtype=float).reshape(-1)
+        if acts.shape != (len(self.cells),) or not np.all(np.isfinite(acts)):
+            raise ValueError(f"the controller answered {len(self.cells)} observations with {acts.size} values, "
+                             f"not all finite")
+        return np.clip(acts, -1.0, 1.0)
+
+
+def remote_actors(exchange):
+    """``actors`` for :func:`measure` whose copies are reached through ``exchange`` (:class:`Remote`);
+    every batch gets new slots, so every simulation starts from fresh copies."""
+    counter = [0]
+
+    def make(cells):
+        first = counter[0]
+        counter[0] += len(np.unique(cells[:, 1]))
+        return Remote(exchange, cells, first)
+
+    return make
+
+
+LEADERBOARD_CONFIG = PlatoonConfig()  # 8 copies at 20 m/s, the observation's time gap the controller's (or 1.5 s)
+LEADERBOARD_FREQUENCIES = tuple(np.geomspace(0.005, 1.0, 13).round(6))  # [Hz] every other one of the full grid
+
+
+def leaderboard_verdict(actors, declared: float | None) -> dict:
+    """The leaderboard's string-stability cell (JSON-safe): the sweep of :data:`LEADERBOARD_CONFIG`
+    over :data:`LEADERBOARD_FREQUENCIES` (every other frequency of the default grid) and the
+    Gunter-like disturbance; ``{"failed": reason}`` when the column has no steady state."""
+    try:
+        r = measure(actors, "the controller", declared, LEADERBOARD_CONFIG, frequencies=LEADERBOARD_FREQUENCIES)
+    except StringStabilityError as exc:
+        return {"failed": str(exc)}
+    d = r.disturbance
+    out = {"max_gain": None if not math.isfinite(r.max_gain) else round(r.max_gain, 6),
+           "string_stable": r.string_stable, "tolerance": r.tolerance,
+           "unstable_bands_hz": [list(b) for b in r.unstable_bands], "vehicles": r.config.vehicles,
+           "speed": r.config.speed, "time_gap": r.time_gap, "frequencies": len(r.frequencies),
+           "disturbance_growth": None if d is None else round(float(d.drops[-1] / d.lead_drop), 6),
+           "errors": [str(e) for e in r.errors]}
+    return out
+
+
+def format_verdict(cell: dict | None) -> str:
+    """A table cell: ``stable (0.996)``, ``UNSTABLE (1.016)``, ``no verdict`` or ``failed``."""
+    if not cell:
+        return "-"
+    if "failed" in cell:
+        return "failed"
+    if cell.get("string_stable") is None:
+        return "no verdict"
+    word = "stable" if cell["string_stable"] else "UNSTABLE"
+    return f"{word} ({cell['max_gain']:.3f})"
+
+
 @dataclass
 class _Run:
     t: np.ndarray
@@ -424,9 +497,11 @@ class _Run:
     errors: dict  # row index -> RowError
 
 
-def _simulate(controller, layout: np.ndarray, humans, lead: np.ndarray, gap0: np.ndarray, v0: np.ndarray,
+def _simulate(actors, layout: np.ndarray, humans, lead: np.ndarray, gap0: np.ndarray, v0: np.ndarray,
               cfg: PlatoonConfig, time_gap: float, row_names: list[str]) -> _Run:
-    """One batch: ``layout`` ``(B, N)`` of -1 (the controller) or a human driver's index into
+    """One batch: ``actors(cells)`` makes the controller's side for the controlled ``cells``
+    (:class:`_Copies` here, :class:`Remote` in a sandbox); ``layout`` ``(B, N)`` of -1 (the
+    controller) or a human driver's index into
     ``humans``; ``lead`` ``(B, T+1)`` the lead's speed at each step; ``gap0`` ``(B, N)`` and
     ``v0`` ``(B,)`` the start. Raises :class:`_Raised` when a vectorised controller raises."""
     from acc_gym.drivers.mpc import MPCDriver
@@ -442,7 +517,7 @@ def _simulate(controller, layout: np.ndarray, humans, lead: np.ndarray, gap0: np
     m = low.shape[0]
     mine = layout < 0
     cells = np.argwhere(mine)  # row-major (b, j)
-    ctl = _Copies(controller, cells) if cells.size else None
+    ctl = actors(cells) if cells.size else None
     human_cells = np.argwhere(~mine)
     driver = None
     if human_cells.size:
@@ -509,11 +584,11 @@ def _simulate(controller, layout: np.ndarray, humans, lead: np.ndarray, gap0: np
     return _Run(np.arange(T + 1) * DT, rec["x"], rec["v"], rec["a"], errors)
 
 
-def _simulate_rows(controller, layout, humans, lead, gap0, v0, cfg, time_gap, row_names) -> _Run:
+def _simulate_rows(actors, layout, humans, lead, gap0, v0, cfg, time_gap, row_names) -> _Run:
     """:func:`_simulate`, and when a vectorised controller raises, each row again on its own so
     the failure is named per row (the other rows' results stand)."""
     try:
-        return _simulate(controller, layout, humans, lead, gap0, v0, cfg, time_gap, row_names)
+        return _simulate(actors, layout, humans, lead, gap0, v0, cfg, time_gap, row_names)
     except _Raised as first:
         B = layout.shape[0]
         if B == 1:
@@ -521,7 +596,7 @@ def _simulate_rows(controller, layout, humans, lead, gap0, v0, cfg, time_gap, ro
             nan = np.full((T + 1, 1, layout.shape[1] + 1), np.nan)
             err = RowError(row_names[0], first.vehicle, first.k * DT, _describe_exc(first.exc))
             return _Run(np.arange(T + 1) * DT, nan, nan.copy(), nan.copy(), {0: err})
-    parts = [_simulate_rows(controller, layout[b:b + 1], humans, lead[b:b + 1], gap0[b:b + 1], v0[b:b + 1], cfg,
+    parts = [_simulate_rows(actors, layout[b:b + 1], humans, lead[b:b + 1], gap0[b:b + 1], v0[b:b + 1], cfg,
                             time_gap, [row_names[b]]) for b in range(layout.shape[0])]
     errors = {b: p.errors[0] for b, p in enumerate(parts) if 0 in p.errors}
     return _Run(parts[0].t, *(np.concatenate([getattr(p, k) for p in parts], axis=1) for k in ("x", "v", "a")),
@@ -543,7 +618,7 @@ def _humans(cfg: PlatoonConfig):
     return sample_drivers(np.random.default_rng([cfg.seed, 34]), n, cfg.cruise_speed, cfg.drivers)
 
 
-def _equilibrium(controller, name: str, cfg: PlatoonConfig, humans, time_gap: float, speed: float) -> np.ndarray:
+def _equilibrium(actors, name: str, cfg: PlatoonConfig, humans, time_gap: float, speed: float) -> np.ndarray:
     """(N,) the gap [m] each position settles at behind its predecessor at ``speed``: each kind of
     vehicle follows a constant-speed lead two copies deep (the first's gap for position 1, the
     second's -- which has a second vehicle ahead -- for the others)."""
@@ -556,7 +631,7 @@ def _equilibrium(controller, name: str, cfg: PlatoonConfig, humans, time_gap: fl
     guess = min(2.5 + time_gap * speed, 0.8 * cfg.sensor_range)
     gap0 = np.full((B, 2), guess)
     names = ["equilibrium" for _ in distinct]
-    run = _simulate_rows(controller, layout, humans, lead, gap0, np.full(B, float(speed)), cfg, time_gap, names)
+    run = _simulate_rows(actors, layout, humans, lead, gap0, np.full(B, float(speed)), cfg, time_gap, names)
     gaps = run.x[:, :, :-1] - LENGTH - run.x[:, :, 1:]
     last = int(round(10.0 / DT))
     out = {}
@@ -656,6 +731,15 @@ def string_stability(controller, config: PlatoonConfig | None = None, *, frequen
                              "measure the human drivers alone")
     label = name or ("human" if human_only else _name(controller))
     declared = None if ctl is None else declared_time_gap(ctl)
+    actors = None if ctl is None else (lambda cells: _Copies(ctl, cells))
+    return measure(actors, label, declared, cfg, frequencies=frequencies, disturbance=disturbance, trace=trace)
+
+
+def measure(actors, label: str, declared: float | None, cfg: PlatoonConfig, *, frequencies=None,
+            disturbance: bool = True, trace=None) -> StringStabilityReport:
+    """:func:`string_stability` for a controller reached through ``actors(cells)`` (an object
+    answering the controlled cells' observations each step; None: humans only), whose declared
+    time gap is ``declared``: the leaderboard's path, where the copies live in a sandbox."""
     time_gap = float(cfg.time_gap if cfg.time_gap is not None else (declared if declared is not None else 1.5))
     freqs = np.asarray(FREQUENCIES if frequencies is None else frequencies, dtype=float)
     check_finite("frequencies", freqs)
@@ -664,7 +748,7 @@ def string_stability(controller, config: PlatoonConfig | None = None, *, frequen
                          f"Nyquist frequency of the {DT:g} s step), got {np.asarray(frequencies).tolist()!r}")
     humans = _humans(cfg)
     speed = float(cfg.speed)
-    gaps = _equilibrium(ctl, label, cfg, humans, time_gap, speed)
+    gaps = _equilibrium(actors, label, cfg, humans, time_gap, speed)
     duration = cfg.settle + max(float(np.max(1.0 / freqs)), 40.0)
     lead, amp = sweep_lead(freqs, speed, duration, RAMP_SHARE * cfg.settle)
     rows = [f"{f:.4g} Hz" for f in freqs]
@@ -673,7 +757,7 @@ def string_stability(controller, config: PlatoonConfig | None = None, *, frequen
         rows.append("disturbance")
     B, N = lead.shape[0], cfg.vehicles
     layout = np.broadcast_to(_layout(cfg), (B, N)).copy()
-    run = _simulate_rows(ctl, layout, humans, lead, np.broadcast_to(gaps, (B, N)).copy(), np.full(B, speed), cfg,
+    run = _simulate_rows(actors, layout, humans, lead, np.broadcast_to(gaps, (B, N)).copy(), np.full(B, speed), cfg,
                          time_gap, rows)
     F = freqs.size
     pair = np.full((F, N), np.nan)
@@ -708,18 +792,18 @@ def string_stability(controller, config: PlatoonConfig | None = None, *, frequen
     if disturbance and F not in run.errors:
         report.disturbance = _response("disturbance", run, F)
     if trace is not None:
-        report.trace = _trace(ctl, label, cfg, humans, time_gap, trace, report)
+        report.trace = _trace(actors, label, cfg, humans, time_gap, trace, report)
     return report
 
 
-def _trace(ctl, label, cfg, humans, time_gap, profile, report) -> Disturbance | None:
+def _trace(actors, label, cfg, humans, time_gap, profile, report) -> Disturbance | None:
     T = int(round(profile.duration / DT))
     lead = np.asarray(profile.speed(float(profile.times[0]) + np.arange(T + 1) * DT), dtype=float)
     if lead.ndim != 1:
         raise ValueError("trace must be a single speed profile, not a batch")
     v0 = float(lead[0])
-    gaps = _equilibrium(ctl, label, cfg, humans, time_gap, v0)
-    run = _simulate_rows(ctl, _layout(cfg)[None, :], humans, lead[None, :], gaps[None, :], np.array([v0]), cfg,
+    gaps = _equilibrium(actors, label, cfg, humans, time_gap, v0)
+    run = _simulate_rows(actors, _layout(cfg)[None, :], humans, lead[None, :], gaps[None, :], np.array([v0]), cfg,
                          time_gap, ["trace"])
     if 0 in run.errors:
         report.errors.append(run.errors[0])

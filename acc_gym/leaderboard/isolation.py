@@ -191,7 +191,7 @@ def _exchange(ctl, obs, starts, slots, deadline_step: float | None, deadline_tot
 
 
 def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float, traces: bool, log_path: str,
-             uid: int | None, sandbox: str, in_flight: int, runner_pid: int) -> None:
+             uid: int | None, sandbox: str, in_flight: int, runner_pid: int, platoon: bool = False) -> None:
     """The simulation process for one controller (see the module docstring)."""
     from acc_gym.leaderboard import protocol
     from acc_gym._process import become_subreaper, die_with_parent, kill_all
@@ -318,6 +318,8 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
             run_jobs([k], True, lambda j, run: kept.setdefault("run", run))
             run = kept["run"]
             conn.send(("trace", {"position": k, "score": float(run.info["score"]), "trace": run.trace()}))
+        if platoon:
+            conn.send(("string_stability", _platoon(ctl, declared, step_budget, budget, deadline_total)))
         conn.send(("done", None))
     except ControllerFailed as exc:
         conn.send(("failed", {"reason": exc.reason, "traceback": exc.tb}))
@@ -335,6 +337,22 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
         conn.close()
 
 
+def _platoon(ctl, declared, step_budget: float, budget: float, deadline_total: float) -> dict:
+    """The string-stability cell (:func:`acc_gym.evaluation.string_stability.leaderboard_verdict`),
+    its column's copies in the controller's sandbox; a failure there is the cell's, the
+    episodes already received stand."""
+    from acc_gym.evaluation.string_stability import leaderboard_verdict, remote_actors
+
+    def exchange(obs, starts, slots):
+        return _exchange(ctl, obs, starts, slots, time.monotonic() + step_budget * len(slots), deadline_total,
+                         step_budget, budget, "the string-stability column")
+
+    try:
+        return leaderboard_verdict(remote_actors(exchange), declared)
+    except ControllerFailed as exc:
+        return {"failed": exc.reason}
+
+
 @dataclass
 class Outcome:
     """What the runner learned about one controller."""
@@ -345,13 +363,14 @@ class Outcome:
     traceback: str | None = None
     episodes: list | None = None
     trace: dict | None = None
+    string_stability: dict | None = None
     wall_time_s: float = 0.0
     log: str | None = None
 
 
 class _Running:
     def __init__(self, ctx, reference: str, jobs: list, step_budget: float, budget: float, traces: bool,
-                 log_path: str, uid: int | None, sandbox: str, in_flight: int):
+                 log_path: str, uid: int | None, sandbox: str, in_flight: int, platoon: bool = False):
         self.reference, self.jobs = reference, jobs
         self.outcome = Outcome(reference, episodes=[], log=log_path)
         self.ledger = Ledger(jobs)
@@ -359,7 +378,7 @@ class _Running:
         self.conn, child_conn = ctx.Pipe(duplex=False)
         self.process = ctx.Process(target=simulate, name=f"acc-gym-leaderboard[{reference}]",
                                    args=(child_conn, reference, jobs, step_budget, budget, traces, log_path, uid,
-                                         sandbox, in_flight, os.getpid()), daemon=False)
+                                         sandbox, in_flight, os.getpid(), platoon), daemon=False)
         self.started = time.monotonic()
         self.process.start()
         child_conn.close()
@@ -375,6 +394,8 @@ class _Running:
                         self.fail(problem)
                 elif kind == "trace":
                     self.outcome.trace = payload[0]
+                elif kind == "string_stability":
+                    self.outcome.string_stability = payload[0]
                 elif kind == "done":
                     problem = self.ledger.problem()
                     if problem is not None:
@@ -410,12 +431,14 @@ class _Running:
 
 def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_budget: float, budget: float,
                  traces: bool = False, progress=None, log_dir=None, uids: dict | None = None,
-                 sandbox: str = "process", in_flight: int = IN_FLIGHT) -> dict[str, Outcome]:
+                 sandbox: str = "process", in_flight: int = IN_FLIGHT, platoon: bool = False) -> dict[str, Outcome]:
     """Run ``jobs`` for every controller, ``workers`` controllers at a time (module docstring).
 
     ``uids`` maps a reference to the user id its sandbox runs as (None: the runner's);
     ``log_dir`` receives one log file per controller. Returns ``{reference: Outcome}`` in
-    the order of ``references``; ``progress(outcome)`` is called as each one finishes."""
+    the order of ``references``; ``progress(outcome)`` is called as each one finishes. With
+    ``platoon``, after its episodes each controller's string stability is measured through the
+    same sandbox (``Outcome.string_stability``)."""
     import tempfile
 
     ctx = multiprocessing.get_context(START_METHOD)
@@ -430,7 +453,7 @@ def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_b
             while pending and len(running) < workers:
                 ref = pending.pop(0)
                 running.append(_Running(ctx, ref, jobs, step_budget, budget, traces, log_file(log_dir, ref),
-                                        uids.get(ref), sandbox, in_flight))
+                                        uids.get(ref), sandbox, in_flight, platoon))
             wait([r.conn for r in running] + [r.process.sentinel for r in running], timeout=POLL_S)
             now = time.monotonic()
             for r in list(running):

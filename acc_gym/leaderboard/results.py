@@ -154,6 +154,8 @@ COLUMNS = ("rank", "controller", "status", "points", "score", "qualified", "coll
            "safe_spacing", "min_ttc_s", "max_jerk_mps3", "episodes", "wall_time_s", "reason", "vs_above",
            "vs_above_diff", "vs_above_ci_low", "vs_above_ci_high")
 RISK_COLUMNS = ("risk_p", "risk_ci_low", "risk_ci_high", "risk_upper_bound", "risk_episodes")  # with --risk
+# the string-stability column (on by default): numbers for the CSV, the verdict's text for the tables
+STRING_COLUMNS = ("string_max_gain", "string_stable", "string_disturbance_growth")
 #: table columns with an interval, and the summary figure they show
 INTERVALS = {"points": "mean_points", "score": "mean_score", "qualified": "share_qualified",
              "collisions_per_hour": "collisions_per_hour", "comfortable": "share_comfortable",
@@ -187,6 +189,12 @@ def table_rows(results: dict) -> list[dict]:
             row["risk"] = c.get("risk")
             for col in RISK_COLUMNS:
                 row[col] = r.get(col[len("risk_"):])
+        if _has_string_stability(results):
+            cell = c.get("string_stability") or {}
+            row["string_stability"] = c.get("string_stability")
+            row["string_max_gain"] = cell.get("max_gain")
+            row["string_stable"] = cell.get("string_stable")
+            row["string_disturbance_growth"] = cell.get("disturbance_growth")
         vs = c.get("vs_above")
         row["vs_above"] = uncertainty.verdict(vs)
         row["vs_above_diff"] = vs["diff"] if vs else None
@@ -204,11 +212,29 @@ def _has_risk(results: dict) -> bool:
     return bool((results["manifest"].get("settings") or {}).get("risk"))
 
 
+def string_stability_note(results: dict) -> str:
+    """What the string-stability column measured and the rule it applies (from the manifest)."""
+    st = results["manifest"]["settings"]["string_stability"]
+    f = st["frequencies_hz"]
+    return (f"string stability: {st['vehicles']} copies of the controller behind a lead oscillating around "
+            f"{st['speed']:g} m/s at {len(f)} frequencies ({f[0]:g}-{f[-1]:g} Hz); max gain = the largest "
+            f"vehicle-to-vehicle speed gain; stable when it is at most 1 + {st['tolerance']:g} "
+            f"(acc-gym string-stability; failed: no steady state or the controller failed)")
+
+
+def _has_string_stability(results: dict) -> bool:
+    return bool((results["manifest"].get("settings") or {}).get("string_stability"))
+
+
 def _fmt(key: str, value) -> str:
     if key == "risk":
         from acc_gym.risk.isolated import format_risk
 
         return format_risk(value)
+    if key == "string_stability":
+        from acc_gym.evaluation.string_stability import format_verdict
+
+        return format_verdict(value)
     if value is None:
         return "-"
     if key == "vs_above":
@@ -239,6 +265,8 @@ def display_columns(results: dict) -> list[tuple[str, str]]:
         cols += [(f"points[{s['name']}]", s["name"]) for s in suites]
     if _has_risk(results):
         cols.append(("risk", f"P(collision) per {results['manifest']['settings']['risk']['family']}"))
+    if _has_string_stability(results):
+        cols.append(("string_stability", "string stability (max gain)"))
     return cols + [("episodes", "episodes"), ("wall_time_s", "time [s]")]
 
 
@@ -275,6 +303,8 @@ def text_table(results: dict) -> str:
              "  ".join("-" * w for w in widths)]
     lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
     lines += [UNCERTAINTY_NOTE]
+    if _has_string_stability(results):
+        lines += [string_stability_note(results)]
     lines += [f"failed: {c['name']}: {c['reason']}" for c in results["controllers"] if c["status"] != "ok"]
     return "\n".join(lines)
 
@@ -292,6 +322,7 @@ def markdown(results: dict) -> str:
              (f"Split `{m['split']}` of {suites}; ranked by mean points: paper 003's 100-point score, 0 for an "
               f"episode that ended in a collision (each suite weighs the same; equal figures share a rank). "
               f"acc_gym {m['versions']['acc_gym']}, {m['created']}."), "", UNCERTAINTY_NOTE + ".", "",
+             *([string_stability_note(results) + ".", ""] if _has_string_stability(results) else []),
              "| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
     lines += ["| " + " | ".join(esc(c) for c in r) + " |" for r in rows]
     failed = [c for c in results["controllers"] if c["status"] != "ok"]
@@ -303,11 +334,12 @@ def markdown(results: dict) -> str:
 def csv_text(results: dict) -> str:
     rows = table_rows(results)
     buf = io.StringIO()
-    fields = [f for f in rows[0] if f != "risk"] if rows else list(COLUMNS)  # risk: its numeric risk_* columns
+    nested = ("risk", "string_stability")  # as their numeric columns (risk_*, string_*)
+    fields = [f for f in rows[0] if f not in nested] if rows else list(COLUMNS)
     writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
     writer.writeheader()
     for row in rows:
-        writer.writerow({k: "" if v is None else v for k, v in row.items() if k != "risk"})
+        writer.writerow({k: "" if v is None else v for k, v in row.items() if k not in nested})
     return buf.getvalue()
 
 

@@ -181,10 +181,20 @@ def _risk_settings(risk) -> dict | None:
     return out
 
 
+def _platoon_settings() -> dict:
+    from acc_gym.evaluation.string_stability import LEADERBOARD_CONFIG, LEADERBOARD_FREQUENCIES, TOLERANCE
+
+    c = LEADERBOARD_CONFIG
+    return {"vehicles": c.vehicles, "speed": c.speed, "set_speed": c.cruise_speed, "settle_s": c.settle,
+            "frequencies_hz": list(LEADERBOARD_FREQUENCIES), "tolerance": TOLERANCE,
+            "rule": "string stable when the largest vehicle-to-vehicle speed gain over the frequencies is at most "
+                    f"1 + {TOLERANCE:g}"}
+
+
 def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=None, workers: int = DEFAULT_WORKERS,
                     step_budget: float = DEFAULT_STEP_BUDGET, budget: float = DEFAULT_BUDGET,
                     episodes: int | None = None, report: bool = True, progress=None, sandbox: str = "process",
-                    show=None, secret=None, risk: dict | None = None) -> dict:
+                    show=None, secret=None, risk: dict | None = None, string_stability: bool = True) -> dict:
     """Score ``controllers`` on ``suites`` (names; default all) and rank them; returns the results dict.
 
     ``out``: a directory to write results.json, results.csv, leaderboard.md, (with
@@ -202,6 +212,9 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     (:func:`acc_gym.risk.isolated.leaderboard_risk`; a dict of its options: ``family``
     (default ``"cut-in"``), ``budget`` (episodes, default 4096), ``target_rhw`` (0.2)); the
     estimate goes into each controller's ``risk`` and a column of the table.
+    ``string_stability``: after its episodes, each controller's column of 8 copies is measured
+    in the same sandbox (:func:`acc_gym.evaluation.string_stability.leaderboard_verdict`; a few
+    seconds each); the verdict goes into each controller's ``string_stability`` and a column.
     """
     from acc_gym.leaderboard.provenance import code_digest
     from acc_gym.suites import SPLITS, get_suite, list_suites
@@ -262,7 +275,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     logs.mkdir(exist_ok=True)
     try:
         outcomes = run_isolated(refs, jobs, workers=workers, step_budget=step_budget, budget=budget, traces=traces,
-                                progress=progress, log_dir=logs, uids=uids, sandbox=sandbox)
+                                progress=progress, log_dir=logs, uids=uids, sandbox=sandbox,
+                                platoon=bool(string_stability))
     except BaseException:
         if staging is not None:
             shutil.rmtree(staging, ignore_errors=True)
@@ -288,7 +302,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                         "traceback": o.traceback, "wall_time_s": o.wall_time_s, "notes": notes,
                         "log": f"logs/{Path(o.log).name}" if staging is not None else o.log,
                         "summary": summarise_controller(o.episodes, names) if o.status == "ok" else None,
-                        "episodes": o.episodes, **({"risk": risks.get(ref)} if risk is not None else {})})
+                        "episodes": o.episodes, **({"risk": risks.get(ref)} if risk is not None else {}),
+                        **({"string_stability": o.string_stability} if string_stability else {})})
     ranking = rank(entries)
     manifest = {
         "format": "acc_gym.leaderboard/1", "created": created, "versions": versions(),
@@ -296,7 +311,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
         "suites": suite_info, "split": split, "episodes_cap": episodes, "controllers": refs,
         "secret_commitment": private_split.commitment(secret) if split == private_split.PRIVATE else None,
         "settings": {"workers": workers, "step_budget_s": step_budget, "budget_s": budget,
-                     "start_method": START_METHOD, "in_flight": IN_FLIGHT, "risk": risk},
+                     "start_method": START_METHOD, "in_flight": IN_FLIGHT, "risk": risk,
+                     "string_stability": _platoon_settings() if string_stability else None},
         "sandbox": sandbox_info, "ranking_rule": RANKING_RULE,
         "results_key_id": None if key is None else signature({}, key)["key_id"],
         "timings": {"total_wall_s": time.monotonic() - t0,

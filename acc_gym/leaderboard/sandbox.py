@@ -8,7 +8,10 @@ its end of a socket; it receives observations and answers actions
 controller, made before its first call and ``reset()`` at every episode start, and it
 is called with that episode's single observation row, exactly as
 :func:`acc_gym.evaluation.runner.run_episode` calls it -- so a controller's episodes
-are the same bits here as under ``acc-gym evaluate``.
+are the same bits here as under ``acc-gym evaluate``. (The string-stability column sends
+one position's rows of every frequency under one slot: a vectorised controller's copy
+answers them in one call, as ``acc-gym string-stability`` calls it, any other gets a
+copy per row.)
 
 What the process sandbox (``sandbox="process"``, the default) guarantees:
 
@@ -71,6 +74,22 @@ def _answer(controller, obs_row: np.ndarray, reference: str) -> float:
     return float(as_action(_action(controller, obs_row.astype(np.float32)), reference)[0])
 
 
+def _answer_rows(controller, rows: np.ndarray, reference: str) -> np.ndarray:
+    """A vectorised controller's answer to ``rows`` ``(n, d)`` in one call, checked as
+    :func:`acc_gym.evaluation.runner.as_action` checks one (shape, finite), clipped, float32."""
+    from acc_gym.evaluation.runner import _action
+
+    raw = np.asarray(_action(controller, rows.astype(np.float32)))
+    if raw.dtype.kind not in "fiu" or raw.size != rows.shape[0]:
+        raise ValueError(f"controller {reference!r} answered {rows.shape[0]} observations with an array of shape "
+                         f"{raw.shape} ({raw.dtype}); expected {rows.shape[0]} numbers")
+    values = raw.astype(np.float64).reshape(-1)
+    if not np.all(np.isfinite(values)):
+        raise ValueError(f"controller {reference!r} returned an action that is not finite: "
+                         f"{values[~np.isfinite(values)][0]!r}")
+    return np.clip(values, -1.0, 1.0).astype(np.float32)
+
+
 def serve(sock: socket.socket, reference: str) -> None:
     """Load the controller, say hello, then answer batches until goodbye."""
     where = "loading the controller"
@@ -78,7 +97,8 @@ def serve(sock: socket.socket, reference: str) -> None:
         from acc_gym.evaluation.runner import load_controller
 
         pristine = load_controller(reference)
-        copies: dict[int, object] = {}
+        vectorised = bool(getattr(pristine, "vectorised", False))
+        copies: dict = {}
 
         def fresh():  # a copy made before any call: every slot starts from the same state
             try:
@@ -97,12 +117,33 @@ def serve(sock: socket.socket, reference: str) -> None:
             obs, starts, slots = batch
             where = f"step batch {step}"
             actions = np.empty(obs.shape[0])
+            groups: dict[int, list[int]] = {}
             for i, slot in enumerate(slots):
-                if slot not in copies:
-                    copies[slot] = fresh()
-                if starts[i] and hasattr(copies[slot], "reset"):
-                    copies[slot].reset()
-                actions[i] = _answer(copies[slot], obs[i], reference)
+                groups.setdefault(int(slot), []).append(i)
+            for slot, rows in groups.items():
+                # one row per slot (every episode's path): that slot's copy answers it. Several rows
+                # under one slot (a string-stability column position): one call with all of them when
+                # the controller is vectorised, else a copy per row (the same copy each step)
+                if len(rows) == 1 or vectorised:
+                    keys = [slot]
+                else:
+                    keys = [(slot, k) for k in range(len(rows))]
+                for key in keys:
+                    if key not in copies:
+                        copies[key] = fresh()
+                if len(keys) == 1:
+                    c = copies[slot]
+                    if starts[rows].any() and hasattr(c, "reset"):
+                        c.reset()
+                    if len(rows) == 1:
+                        actions[rows[0]] = _answer(c, obs[rows[0]], reference)
+                    else:
+                        actions[rows] = _answer_rows(c, obs[rows], reference)
+                    continue
+                for key, i in zip(keys, rows):
+                    if starts[i] and hasattr(copies[key], "reset"):
+                        copies[key].reset()
+                    actions[i] = _answer(copies[key], obs[i], reference)
             protocol.send_actions(sock, actions)
             step += 1
     except protocol.Closed:

@@ -95,3 +95,36 @@ class ExitsEarly:
 
             os._exit(0)
         return np.zeros(1, dtype=np.float32), None
+
+
+class ShortGapACC:
+    """The linear ACC declaring a 0.6 s time gap: string unstable (its threshold is 0.76 s)."""
+
+    time_gap = 0.6
+    vectorised = True
+
+    def __init__(self):
+        from acc_gym_agents.controllers.linear import LinearACC
+
+        self.law = LinearACC()
+
+    def predict(self, obs, deterministic=True):
+        return self.law.predict(obs, deterministic=deterministic)
+
+
+class FailsInAColumn:
+    """Fine in every episode, raises when it is asked about more than one row at once
+    (only the string-stability column does that)."""
+
+    vectorised = True
+
+    def __init__(self):
+        from acc_gym_agents.controllers.linear import LinearACC
+
+        self.law = LinearACC()
+
+    def predict(self, obs, deterministic=True):
+        o = np.asarray(obs)
+        if o.ndim == 2 and o.shape[0] > 1:
+            raise RuntimeError("deliberate failure on a batch")
+        return self.law.predict(obs, deterministic=deterministic)
