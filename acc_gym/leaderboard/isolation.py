@@ -199,6 +199,12 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
 
     die_with_parent(runner_pid)
     become_subreaper()
+    import warnings
+
+    # a suite pins its env id's version (a result names what it ran): gymnasium's advice to move
+    # from -v0 to -v1 is noise in the leaderboard's output
+    warnings.filterwarnings("ignore", message=".*is out of date. You should consider upgrading",
+                            category=DeprecationWarning)
     started = time.monotonic()
     deadline_total = started + budget
     ctl = None
