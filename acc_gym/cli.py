@@ -45,6 +45,11 @@ results.csv, leaderboard.md and report.html (see :mod:`acc_gym.leaderboard`).
 runs N copies of a controller in a column: its frequency response vehicle to vehicle, a
 Gunter-like disturbance, and the verdict (see :mod:`acc_gym.evaluation.string_stability`).
 
+    acc-gym conformance CONTROLLER [--standard iso15622|all] [--seeds 0 1 2] [--json] [--out DIR]
+
+checks a controller against ISO 15622's ACC envelope on the iso15622-v1 battery (see
+:mod:`acc_gym.standards`).
+
     acc-gym campaign --suite S --hours H --controller C --out DIR [--split test] [--root-seed R]
                      [--workers N | --scheduler ADDRESS|local] [--chunk-size K] [--max-chunks M] [--json]
 
@@ -233,8 +238,10 @@ def _main(argv=None) -> int:
 
     risk_cli.add_parser(sub)
     from acc_gym.evaluation import string_stability_cli
+    from acc_gym.standards import conformance as conformance_cli
 
     string_stability_cli.add_parser(sub)
+    conformance_cli.add_parser(sub)
     plugins = cli_plugins()  # e.g. acc-gym train, from the acc_gym.cli entry points
     for plugin in plugins.values():
         plugin.add_parser(sub)
@@ -253,6 +260,8 @@ def _main(argv=None) -> int:
         return risk_cli.run(args, parser)
     if args.command == "string-stability":
         return string_stability_cli.run(args, parser)
+    if args.command == "conformance":
+        return conformance_cli.run(args, parser)
     if args.command in ("scenarios", "score"):
         try:
             print(_scenarios(args) if args.command == "scenarios" else _score(args))

@@ -19,7 +19,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from acc_gym.leaderboard.results import formatted_rows
+from acc_gym.leaderboard.results import RANKING_RULE, formatted_rows
 
 CSS = """
 body { font-family: system-ui, sans-serif; margin: 2em; color: #222; }
@@ -76,8 +76,8 @@ def render_html(results: dict, traces: dict | None = None) -> str:
     parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
              "<title>acc_gym leaderboard</title>", f"<style>{CSS}</style></head><body>",
              "<h1>acc_gym leaderboard</h1>",
-             (f"<p>Split <code>{e(m['split'])}</code>, ranked by paper 003's 100-point score (each suite weighs "
-              f"the same). Created {e(m['created'])}.</p>")]
+             (f"<p>Split <code>{e(m['split'])}</code>. Ranking: {e(RANKING_RULE)}. Created "
+              f"{e(m['created'])}.</p>")]
     parts.append("<table><tr><th>suite</th><th>version</th><th>sha256 (split)</th><th>root seed</th>"
                  "<th>episodes</th><th>hours</th></tr>")
     for s in m["suites"]:

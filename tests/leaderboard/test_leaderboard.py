@@ -65,6 +65,12 @@ def test_cli_prints_the_ranking_and_writes_four_files(cli_run):
     html = (out / "report.html").read_text()
     assert html.startswith("<!DOCTYPE html>") and html.count("data:image/png;base64,") >= 2 + 3
     assert "http" not in html.replace("http-equiv", "")  # self-contained
+    # every report states the rule the ranking applies (points: a collision scores 0), not another
+    from html import escape
+
+    from acc_gym.leaderboard.results import RANKING_RULE
+
+    assert escape(RANKING_RULE) in html and "0 for an episode that ended in a collision" in md
 
 
 def test_results_manifest_and_ranking(cli_run):

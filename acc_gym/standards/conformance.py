@@ -1,0 +1,187 @@
+"""``acc-gym conformance``: a controller's verdicts by the standards, as JSON, Markdown and HTML.
+
+    acc-gym conformance acc                       # ISO 15622 on the iso15622-v1 battery
+    acc-gym conformance mymodule:MyACC --json
+    acc-gym conformance acc --out conformance/    # conformance.json, .md, .html and envelope.png
+
+The JSON object: ``{"controller", "standards": {"iso15622": {"standard", "battery", "passed",
+"requirements": [{"name", "measured", "limit", "unit", "passed", "where", ...}], "drives",
+"errors"}}}``. A drive the controller fails (it raises, answers NaN) is named under
+``errors`` and the rest of the report is still written. The envelope plot draws every 2 s
+mean deceleration and 1 s mean jerk of the battery against speed, with the limits.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from acc_gym.standards import battery as batteries
+from acc_gym.standards import iso15622
+
+STANDARDS = ("iso15622",)
+
+
+def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name: str | None = None) -> dict:
+    """The verdicts of ``controller`` by each of ``standards`` (JSON-safe), and the drives for plots
+    under the key ``"_drives"`` (dropped by :func:`to_json`)."""
+    standards = list(standards)
+    unknown = [s for s in standards if s not in STANDARDS]
+    if unknown or not standards:
+        raise ValueError(f"unknown standard(s) {unknown or standards!r}; choose from {list(STANDARDS)} or 'all'")
+    out = {"controller": name or (controller if isinstance(controller, str) else type(controller).__name__),
+           "standards": {}}
+    if "iso15622" in standards:
+        drives, errors, _ = batteries.run_battery(controller, batteries.ISO15622_V1, seeds)
+        report = iso15622.check_drives(drives)
+        report.errors = errors
+        out["standards"]["iso15622"] = {**report.to_dict(), "battery": batteries.ISO15622_V1,
+                                        "seeds": list(seeds)}
+        out["_drives"] = drives
+    return out
+
+
+def to_json(result: dict) -> str:
+    return json.dumps({k: v for k, v in result.items() if not k.startswith("_")})
+
+
+def _num(x, unit: str = "") -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return f"{x:.3g}{(' ' + unit) if unit else ''}"
+
+
+def markdown(result: dict) -> str:
+    lines = [f"# Conformance: `{result['controller']}`", ""]
+    iso = result["standards"].get("iso15622")
+    if iso is not None:
+        verdict = {True: "passes", False: "**fails**", None: "not exercised"}[iso["passed"]]
+        lines += [f"## {iso['standard']} on `{iso['battery']}` (seeds {', '.join(map(str, iso['seeds']))}): "
+                  f"{verdict}", "",
+                  "| requirement | measured | limit | verdict | windows or events outside | worst case | source |",
+                  "|---|---|---|---|---|---|---|"]
+        for r in iso["requirements"]:
+            v = {True: "pass", False: "**fail**", None: "not exercised"}[r["passed"]]
+            lines.append(f"| {r['name']} | {_num(r['measured'], r['unit'])} | {_num(r['limit'], r['unit'])} | {v} | "
+                         f"{r['failures']} | {r['where']} | {r['confidence']} |")
+        for e in iso["errors"]:
+            lines.append(f"\nFailed drive: {e['drive']}: {e['reason']}")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def plot_envelope(drives, path=None):
+    """Every window's mean deceleration (2 s) and mean jerk (1 s) against its mean speed, with the
+    ISO 15622 limits; returns the figure (and saves it to ``path``)."""
+    from matplotlib.figure import Figure
+
+    from acc_gym.plotting import save_figure
+
+    fig = Figure(figsize=(10.0, 4.0), layout="constrained")
+    ax_d, ax_j = fig.subplots(1, 2)
+    speeds = np.linspace(0.0, 40.0, 200)
+    for ax, key, label in ((ax_d, "deceleration", "mean deceleration over 2 s [m/s$^2$]"),
+                           (ax_j, "jerk", "mean |jerk| over 1 s [m/s$^3$]")):
+        limit = iso15622.LIMITS[key]
+        for d in drives:
+            _, mean_v, mean_a, mean_j = iso15622.window_means(d, limit.window)
+            value = -mean_a if key == "deceleration" else np.abs(mean_j)
+            keep = value > 0
+            over = value > limit.at(mean_v)
+            ax.scatter(mean_v[keep & ~over], value[keep & ~over], s=3, color="tab:blue", alpha=0.4)
+            ax.scatter(mean_v[over], value[over], s=6, color="tab:red")
+        ax.plot(speeds, limit.at(speeds), color="k", lw=1.5, label=f"ISO 15622 limit {limit.confidence}")
+        ax.set_xlabel("speed [m/s]")
+        ax.set_ylabel(label)
+        ax.set_ylim(bottom=0.0)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, loc="upper right")
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
+def html_report(result: dict, png: bytes | None = None) -> str:
+    e = html.escape
+    parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+             f"<title>conformance: {e(result['controller'])}</title>",
+             "<style>body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse}"
+             "td,th{border:1px solid #ccc;padding:3px 6px;font-size:13px}.fail{color:#b00}</style></head><body>",
+             f"<h1>Conformance: <code>{e(result['controller'])}</code></h1>"]
+    iso = result["standards"].get("iso15622")
+    if iso is not None:
+        verdict = {True: "passes", False: "fails", None: "not exercised"}[iso["passed"]]
+        parts.append(f"<h2>{e(iso['standard'])} on {e(iso['battery'])}: {verdict}</h2><table><tr><th>requirement"
+                     "</th><th>measured</th><th>limit</th><th>verdict</th><th>outside</th><th>worst case</th>"
+                     "<th>source</th></tr>")
+        for r in iso["requirements"]:
+            v = {True: "pass", False: "fail", None: "not exercised"}[r["passed"]]
+            cls = ' class="fail"' if r["passed"] is False else ""
+            parts.append(f"<tr{cls}><td>{e(r['name'])}</td><td>{e(_num(r['measured'], r['unit']))}</td>"
+                         f"<td>{e(_num(r['limit'], r['unit']))}</td><td>{v}</td><td>{r['failures']}</td>"
+                         f"<td>{e(r['where'])}</td><td>{e(r['source'])} {e(r['confidence'])}</td></tr>")
+        parts.append("</table>")
+        for err in iso["errors"]:
+            parts.append(f'<p class="fail">Failed drive: {e(err["drive"])}: {e(err["reason"])}</p>')
+        if png:
+            parts.append(f'<img alt="envelope" src="data:image/png;base64,{base64.b64encode(png).decode()}">')
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def write_reports(result: dict, out) -> dict:
+    """``conformance.json``, ``conformance.md``, ``conformance.html`` (the plot inside) and
+    ``envelope.png`` in ``out`` (each written atomically); returns the paths."""
+    from acc_gym._io import atomic_write
+    from acc_gym.plotting import save_figure
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"json": out / "conformance.json", "markdown": out / "conformance.md", "html": out / "conformance.html"}
+    png = None
+    if result.get("_drives"):
+        fig = plot_envelope(result["_drives"])
+        buf = io.BytesIO()
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        FigureCanvasAgg(fig)
+        fig.savefig(buf, format="png", dpi=90)
+        png = buf.getvalue()
+        paths["png"] = save_figure(fig, out / "envelope.png")
+    atomic_write(paths["json"], to_json(result) + "\n")
+    atomic_write(paths["markdown"], markdown(result))
+    atomic_write(paths["html"], html_report(result, png))
+    return {k: str(v) for k, v in paths.items()}
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("conformance", help="a controller's verdicts by published standards (ISO 15622's ACC "
+                                            "envelope on the iso15622-v1 battery)")
+    p.add_argument("controller", help="a registered name, module:attribute or a saved model")
+    p.add_argument("--standard", default="all", help=f"one of {', '.join(STANDARDS)} or all (default all)")
+    p.add_argument("--seeds", type=int, nargs="+", default=list(batteries.SEEDS),
+                   help="the battery's seeds (default 0 1 2)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--out", default=None, metavar="DIR", help="write conformance.json, .md, .html and envelope.png")
+
+
+def run(args, parser) -> int:
+    standards = list(STANDARDS) if args.standard == "all" else [s.strip() for s in args.standard.split(",")]
+    try:
+        result = conformance(args.controller, standards, tuple(args.seeds), name=args.controller)
+    except (ValueError, TypeError) as exc:
+        parser.error(str(exc))
+    files = write_reports(result, args.out) if args.out else None
+    if args.json:
+        print(to_json({**result, **({"files": files} if files else {})}))
+    else:
+        print(markdown(result))
+        if files:
+            print("files: " + ", ".join(files.values()))
+    return 0
