@@ -72,6 +72,9 @@ def markdown(result: dict) -> str:
                          f"{r['failures']} | {r['where']} | {r['confidence']} |")
         for e in iso["errors"]:
             lines.append(f"\nFailed drive: {e['drive']}: {e['reason']}")
+        if iso["collisions"]:
+            lines.append(f"\nNot an envelope requirement: {len(iso['collisions'])} of {len(iso['drives'])} drives ended "
+                         f"in a collision ({', '.join(iso['collisions'][:5])}{', ...' if len(iso['collisions']) > 5 else ''}).")
         lines.append("")
     return "\n".join(lines)
 
@@ -129,6 +132,9 @@ def html_report(result: dict, png: bytes | None = None) -> str:
         parts.append("</table>")
         for err in iso["errors"]:
             parts.append(f'<p class="fail">Failed drive: {e(err["drive"])}: {e(err["reason"])}</p>')
+        if iso["collisions"]:
+            parts.append(f"<p>Not an envelope requirement: {len(iso['collisions'])} of {len(iso['drives'])} drives "
+                         f"ended in a collision: {e(', '.join(iso['collisions']))}.</p>")
         if png:
             parts.append(f'<img alt="envelope" src="data:image/png;base64,{base64.b64encode(png).decode()}">')
     parts.append("</body></html>")

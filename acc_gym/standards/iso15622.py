@@ -151,6 +151,9 @@ class Report:
     requirements: list = field(default_factory=list)
     drives: list = field(default_factory=list)  # labels
     errors: list = field(default_factory=list)  # drives that could not be run: (label, reason)
+    # drives that ended in a collision: not an envelope requirement (the envelope says nothing of
+    # safety; a controller that ignores the traffic can stay inside it), reported beside it
+    collisions: list = field(default_factory=list)
 
     @property
     def passed(self) -> bool | None:
@@ -159,7 +162,8 @@ class Report:
 
     def to_dict(self) -> dict:
         return {"standard": STANDARD, "passed": self.passed, "requirements": [r.to_dict() for r in self.requirements],
-                "drives": list(self.drives), "errors": [{"drive": d, "reason": r} for d, r in self.errors]}
+                "drives": list(self.drives), "errors": [{"drive": d, "reason": r} for d, r in self.errors],
+                "collisions": list(self.collisions)}
 
 
 def window_means(drive: Drive, window: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -195,7 +199,7 @@ def _envelope(drives, key: str, limit: SpeedDependentLimit) -> Requirement:
     if worst is None:
         return Requirement(limit.name, None, None, limit.unit, None, "no drive long enough", limit.source,
                            limit.confidence)
-    return Requirement(limit.name, max(worst[1], 0.0), worst[2], limit.unit, failures == 0, worst[3], limit.source,
+    return Requirement(limit.name, max(worst[1], 0.0) + 0.0, worst[2], limit.unit, failures == 0, worst[3], limit.source,
                        limit.confidence, failures)
 
 
@@ -289,4 +293,5 @@ def check_drives(drives, limits: dict | None = None) -> Report:
     reqs = [_envelope(drives, key, lim[key]) for key in ("deceleration", "jerk", "acceleration")]
     reqs.append(_time_gap(drives))
     reqs.extend(_stops(drives))
-    return Report(reqs, [d.label for d in drives])
+    collided = [d.label for d in drives if np.any(np.asarray(d.gap) <= 0.0)]
+    return Report(reqs, [d.label for d in drives], collisions=collided)

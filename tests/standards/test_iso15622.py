@@ -153,3 +153,11 @@ def test_the_battery_runs_every_case_and_names_failures():
     assert all(q.passed is not None for q in r.requirements)  # the rest of the battery still decides
     out = r.to_dict()
     assert out["standard"] == "ISO 15622:2018" and out["errors"][0]["reason"].startswith("RuntimeError")
+
+
+def test_collisions_are_reported_beside_the_envelope():
+    n = 20
+    gap = np.linspace(10.0, -1.0, n + 1)  # closes in and touches
+    r = check_drives([drive([0.0] * n, 20.0, "crash", gap=gap, v_lead=np.full(n + 1, 15.0)),
+                      drive([0.0] * n, 20.0, "clear")])
+    assert r.collisions == ["crash"] and r.to_dict()["collisions"] == ["crash"]
