@@ -5,7 +5,7 @@ Defaults, and why:
 * **suites**: all four (``carfollowing-v1``, ``malicious-v3``, ``ncap-v1``,
   ``singlelane-v3``) -- the leaderboard is about behaviour in every kind of traffic, and
   the four together (365 episodes, 1.7 simulated hours) take a built-in controller about
-  10 s in its process (7-14 s on the development machine), so the nine built-ins finish in
+  10 s in its process (7-14 s on the development machine), so the built-ins finish in
   about a minute on two cores (56 s, report included). ``episodes=N`` caps
   each suite at its first ``N`` episodes for quick runs (the manifest records the cap,
   and the table says how many ran).

@@ -151,7 +151,7 @@ class CCDriver(_Policy):
         if self._n != n:
             self._n = n
             z, f = np.zeros(n), np.zeros(n, dtype=bool)
-            self.phase, self.event, self.steps = np.zeros(n, dtype=int), np.zeros(n, dtype=int), np.zeros(n, dtype=int)
+            self.phase, self.event, self.steps = (np.zeros(n, dtype=int) for _ in range(3))
             self.phase_time, self.t_perc, self.a_hold, self.a_last = z.copy(), z.copy(), z.copy(), z.copy()
             self.prev_gap, self.prev_vrel, self.prev_v_lead = z.copy(), z.copy(), z.copy()
             self.prev_seen, self.prev_hard, self.have_prev = f.copy(), f.copy(), f.copy()

@@ -23,17 +23,31 @@ from acc_gym.drivers.mpc import MPCDriver, MPCDriverParams
 from acc_gym_agents.controllers.linear import _Policy
 
 
+V2V_WIDTHS = (11, 23)  # the observation's widths with V2V fields: -v0 (11) and -v1 (11 + 12 margin features)
+WIDTHS = (7, 11, 13, 23)  # -v0, -v0 with V2V, -v1 (7 + 6 margin features), -v1 with V2V
+
+
+def has_v2v(o: np.ndarray) -> bool:
+    """Whether observation rows ``(n, m)`` carry the V2V fields 7-10 (by the width: a -v1
+    observation without V2V has 13 fields, whose field 7 is a margin feature, not an acceleration)."""
+    if o.shape[1] not in WIDTHS:
+        raise ValueError(f"an observation has {' or '.join(map(str, WIDTHS))} fields (-v0 / -v1, with or without "
+                         f"V2V), got {o.shape[1]}")
+    return o.shape[1] in V2V_WIDTHS
+
+
 def observation(o: np.ndarray) -> Observation:
-    """An :class:`Observation` (arrays ``(n,)``) from observation vectors ``(n, 7)`` or ``(n, 11)``."""
+    """An :class:`Observation` (arrays ``(n,)``) from observation vectors ``(n, m)``, m in :data:`WIDTHS`."""
     v = o[:, 0].copy()
     seen = o[:, 4] > 0.5
     kw = {}
-    if o.shape[1] >= 11:
+    v2v = has_v2v(o)
+    if v2v:
         seen2 = o[:, 10] > 0.5
         kw = dict(gap2=np.where(seen2, o[:, 8], np.inf), v_lead2=np.maximum(v + o[:, 9], 0.0), a_lead2=np.zeros_like(v))
     return Observation(v=v, a=o[:, 1].copy(), gap=np.where(seen, o[:, 2], np.inf),
                        v_lead=np.maximum(v + o[:, 3], 0.0),
-                       a_lead=o[:, 7].copy() if o.shape[1] >= 11 else np.zeros_like(v), **kw)
+                       a_lead=o[:, 7].copy() if v2v else np.zeros_like(v), **kw)
 
 
 class ModelController(_Policy):
@@ -57,7 +71,7 @@ class ModelController(_Policy):
             self._model, self._key = self.make(o[:, 5].astype(float), o[:, 6].astype(float), o.shape[0]), key
             self._v_lead = None
         obs = observation(o.astype(float))
-        if o.shape[1] < 11:  # no V2V: estimate the vehicle ahead's acceleration from its speed (as radar ACCs do)
+        if not has_v2v(o):  # no V2V: estimate the vehicle ahead's acceleration from its speed (as radar ACCs do)
             seen = np.isfinite(obs.gap)
             prev = self._v_lead
             if prev is not None:

@@ -54,3 +54,23 @@ def test_observation_mapping_with_and_without_v2v():
     o3 = np.array([[20.0, 0.5, 30.0, -2.0, 1.0, 25.0, 1.5, -1.5, 60.0, -3.0, 1.0]])
     ob = observation(o3)
     assert ob.a_lead[0] == -1.5 and ob.gap2[0] == 60.0 and ob.v_lead2[0] == 17.0
+
+
+def test_a_v1_observation_is_read_by_its_width_not_as_v2v():
+    """-v1 without V2V has 13 fields: field 7 is a margin feature, not the lead's acceleration."""
+    from acc_gym.envs.observation import margin_features
+
+    o7 = np.array([[20.0, 0.5, 30.0, -2.0, 1.0, 25.0, 1.5]])
+    o11 = np.array([[20.0, 0.5, 30.0, -2.0, 1.0, 25.0, 1.5, -1.5, 60.0, -3.0, 1.0]])
+    for base, width in ((o7, 13), (o11, 23)):
+        v1 = margin_features(base)
+        assert v1.shape[1] == width
+        a, b = observation(base), observation(v1)
+        assert a.a_lead[0] == b.a_lead[0] and (a.gap2 is None) == (b.gap2 is None)
+    with pytest.raises(ValueError, match="9"):
+        observation(np.zeros((1, 9)))
+    # every model controller acts on a -v1 observation as on its -v0 fields
+    for name in ("cacc", "idm", "gipps", "gm", "fuzzy", "mpc"):
+        x, _ = load_controller(name).predict(o7)
+        y, _ = load_controller(name).predict(margin_features(o7))
+        assert x[0] == y[0], name
