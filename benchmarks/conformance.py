@@ -3,8 +3,10 @@
     python benchmarks/conformance.py           # the Markdown table (about a minute on 2 cores)
     python benchmarks/conformance.py --json    # ... and one JSON object on the last line
 
-Each controller goes through ``acc-gym conformance NAME`` (ISO 15622 on the iso15622-v1
-battery, seeds 0-2); a cell is the worst measured value, bold where it is outside the limit.
+Each controller goes through ``acc-gym conformance NAME``: ISO 15622 on the iso15622-v1
+battery (seeds 0-2; a cell is the worst measured value, bold where it is outside the limit)
+and UN R157's preventability on its 34 cases (collisions the careful and competent driver
+avoids / also has).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import json
 
 from acc_gym.standards.conformance import conformance, to_json
 
-CONTROLLERS = ("acc", "cacc", "idm", "gipps", "gm", "fuzzy", "mpc", "constant", "ppo-acc", "ppo")
+CONTROLLERS = ("acc", "cacc", "idm", "gipps", "gm", "fuzzy", "mpc", "constant", "ppo-acc", "ppo", "cc-driver")
 SHORT = {"mean automatic deceleration over 2 s": "decel. 2 s [m/s^2]", "mean jerk over 1 s": "jerk 1 s [m/s^3]",
          "mean automatic acceleration over 2 s": "accel. 2 s [m/s^2]", "steady-state time gap": "time gap [s]",
          "standstill gap behind a stopped target": "standstill gap [m]",
@@ -23,7 +25,7 @@ SHORT = {"mean automatic deceleration over 2 s": "decel. 2 s [m/s^2]", "mean jer
 
 def table(results: list[dict]) -> str:
     reqs = results[0]["standards"]["iso15622"]["requirements"]
-    lines = ["| controller | ISO 15622 | " + " | ".join(SHORT[r["name"]] for r in reqs) + " | collided drives | failed drives |",
+    lines = ["| controller | ISO 15622 | " + " | ".join(SHORT[r["name"]] for r in reqs) + " | collided drives | R157: preventable / non-preventable collisions |",
              "|---|---|" + "---|" * len(reqs) + "---|---|"]
     for res in results:
         iso = res["standards"]["iso15622"]
@@ -35,8 +37,11 @@ def table(results: list[dict]) -> str:
                 text = f"{r['measured']:.2f}"
                 cells.append(f"**{text}**" if r["passed"] is False else text)
         verdict = {True: "passes", False: "fails", None: "-"}[iso["passed"]]
+        r157 = res["standards"]["r157"]
+        prev = r157["preventable_collisions"]
         lines.append(f"| {res['controller']} | {verdict} | " + " | ".join(cells) +
-                     f" | {len(iso['collisions'])} of {len(iso['drives'])} | {len(iso['errors'])} |")
+                     f" | {len(iso['collisions'])} of {len(iso['drives'])} | {f'**{prev}**' if prev else prev} / "
+                     f"{r157['non_preventable_collisions']} of {len(r157['cases'])} |")
     return "\n".join(lines)
 
 
@@ -45,7 +50,7 @@ def main(argv=None) -> int:
     ap.add_argument("--controllers", nargs="+", default=list(CONTROLLERS))
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    results = [conformance(c, name=c) for c in args.controllers]
+    results = [conformance(c, ("iso15622", "r157"), name=c) for c in args.controllers]
     print(table(results))
     if args.json:
         print("[" + ", ".join(to_json(r) for r in results) + "]")

@@ -25,7 +25,7 @@ import numpy as np
 from acc_gym.standards import battery as batteries
 from acc_gym.standards import iso15622
 
-STANDARDS = ("iso15622",)
+STANDARDS = ("iso15622", "r157")
 
 
 def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name: str | None = None) -> dict:
@@ -44,6 +44,10 @@ def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name
         out["standards"]["iso15622"] = {**report.to_dict(), "battery": batteries.ISO15622_V1,
                                         "seeds": list(seeds)}
         out["_drives"] = drives
+    if "r157" in standards:
+        from acc_gym.standards.r157 import r157_cases
+
+        out["standards"]["r157"] = r157_cases(controller)
     return out
 
 
@@ -75,6 +79,23 @@ def markdown(result: dict) -> str:
         if iso["collisions"]:
             lines.append(f"\nNot an envelope requirement: {len(iso['collisions'])} of {len(iso['drives'])} drives ended "
                          f"in a collision ({', '.join(iso['collisions'][:5])}{', ...' if len(iso['collisions']) > 5 else ''}).")
+        lines.append("")
+    r157 = result["standards"].get("r157")
+    if r157 is not None:
+        n = len(r157["cases"])
+        lines += [f"## UN R157: preventability against the careful and competent driver (`{r157['reference']}`)", "",
+                  f"{n} cases (lead deceleration and cut-in grids): **{r157['preventable_collisions']} preventable** "
+                  f"collisions (the C&C driver avoids them), {r157['non_preventable_collisions']} non-preventable "
+                  f"(it collides too).", ""]
+        hit = [c for c in r157["cases"] if c["controller_collides"]]
+        if hit:
+            lines += ["| family | parameters | C&C driver collides | preventable |", "|---|---|---|---|"]
+            for c in hit:
+                params = ", ".join(f"{k} {v:g}" for k, v in c["params"].items())
+                lines.append(f"| {c['family']} | {params} | {'yes' if c['cc_driver_collides'] else 'no'} | "
+                             f"{'**yes**' if c['preventable'] else 'no'} |")
+        for e in r157["errors"]:
+            lines.append(f"\nFailed case: {e['family']} {e['params']}: {e['reason']}")
         lines.append("")
     return "\n".join(lines)
 
@@ -137,6 +158,14 @@ def html_report(result: dict, png: bytes | None = None) -> str:
                          f"ended in a collision: {e(', '.join(iso['collisions']))}.</p>")
         if png:
             parts.append(f'<img alt="envelope" src="data:image/png;base64,{base64.b64encode(png).decode()}">')
+    r157 = result["standards"].get("r157")
+    if r157 is not None:
+        md = markdown({"controller": result["controller"], "standards": {"r157": r157}})
+        body = md.split("\n", 2)[2] if md.count("\n") >= 2 else md
+        parts.append("<pre>" + e(body) + "</pre>")
+        if result.get("_map_png"):
+            parts.append(f'<img alt="preventability map" src="data:image/png;base64,'
+                         f'{base64.b64encode(result["_map_png"]).decode()}">')
     parts.append("</body></html>")
     return "\n".join(parts)
 
@@ -160,6 +189,17 @@ def write_reports(result: dict, out) -> dict:
         fig.savefig(buf, format="png", dpi=90)
         png = buf.getvalue()
         paths["png"] = save_figure(fig, out / "envelope.png")
+    if "r157" in result["standards"]:
+        from acc_gym.standards.r157 import plot_map
+
+        fig = plot_map(result["standards"]["r157"])
+        buf = io.BytesIO()
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        FigureCanvasAgg(fig)
+        fig.savefig(buf, format="png", dpi=90)
+        result = {**result, "_map_png": buf.getvalue()}
+        paths["map"] = save_figure(fig, out / "preventability.png")
     atomic_write(paths["json"], to_json(result) + "\n")
     atomic_write(paths["markdown"], markdown(result))
     atomic_write(paths["html"], html_report(result, png))
@@ -167,8 +207,8 @@ def write_reports(result: dict, out) -> dict:
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("conformance", help="a controller's verdicts by published standards (ISO 15622's ACC "
-                                            "envelope on the iso15622-v1 battery)")
+    p = sub.add_parser("conformance", help="a controller's verdicts by published standards: ISO 15622's ACC "
+                                            "envelope on the iso15622-v1 battery, UN R157's preventability")
     p.add_argument("controller", help="a registered name, module:attribute or a saved model")
     p.add_argument("--standard", default="all", help=f"one of {', '.join(STANDARDS)} or all (default all)")
     p.add_argument("--seeds", type=int, nargs="+", default=list(batteries.SEEDS),
