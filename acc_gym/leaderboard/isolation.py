@@ -82,6 +82,21 @@ def episode_record(job: Job, info: dict) -> dict:
             "qualified": bool(report["qualified"]), "metrics": report["metrics"]}
 
 
+def preventable(job: Job, envs: dict) -> bool:
+    """Whether UN R157's careful and competent driver (the built-in ``cc-driver``, trusted code run
+    here, in the simulation process) avoids the collision of ``job``'s scenario: it drives the
+    same scenario (same seed, same traffic) and does not collide (:mod:`acc_gym.standards.r157`)."""
+    import gymnasium as gym
+
+    from acc_gym.evaluation.runner import load_controller
+    from acc_gym.standards.r157 import REFERENCE, _collides
+
+    env = envs.get(job.env_id) or envs.setdefault(job.env_id, gym.make(job.env_id))
+    if "_cc" not in envs:
+        envs["_cc"] = load_controller(REFERENCE)
+    return not _collides(env, envs["_cc"], job.scenario)
+
+
 def episode_points(report: dict) -> float:
     """The leaderboard's points for one episode: its 100-point score, 0 if it collided."""
     return 0.0 if report["metrics"]["collision"] else float(report["score"])
@@ -312,8 +327,12 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
 
         done_records: dict[int, dict] = {}
 
+        cc_envs: dict = {}
+
         def record_episode(j: int, info: dict) -> None:
             done_records[j] = episode_record(jobs[j], info)
+            if done_records[j]["metrics"]["collision"]:  # UN R157: would the careful driver have avoided it?
+                done_records[j]["preventable"] = preventable(jobs[j], cc_envs)
             conn.send(("episode", j, done_records[j]))
 
         run_batched(list(range(len(jobs))), record_episode)

@@ -95,6 +95,9 @@ def suite_summary(episodes: list[dict]) -> dict:
     hours = sum(e["duration"] for e in episodes) / HOUR
     s["hours"] = hours
     s["collisions_per_hour"] = s["collisions"] / hours
+    # UN R157: a collision the careful and competent driver avoids in the same scenario is preventable
+    s["preventable_collisions"] = sum(e.get("preventable") is True for e in episodes)
+    s["non_preventable_collisions"] = sum(e.get("preventable") is False for e in episodes)
     s["by_group"] = {g: float(np.mean([e["score"] for e in episodes if e["group"] == g]))
                      for g in sorted({e["group"] for e in episodes})}
     return s
@@ -114,7 +117,10 @@ def overall_summary(per_suite: dict) -> dict:
     return {"episodes": sum(v["episodes"] for v in vals), "mean_points": mean("mean_points"),
             "mean_score": mean("mean_score"),
             "share_qualified": mean("share_qualified"), "collisions": collisions, "hours": hours,
-            "collisions_per_hour": collisions / hours, "share_comfortable": mean("share_comfortable"),
+            "collisions_per_hour": collisions / hours,
+            "preventable_collisions": sum(v.get("preventable_collisions", 0) for v in vals),
+            "non_preventable_collisions": sum(v.get("non_preventable_collisions", 0) for v in vals),
+            "share_comfortable": mean("share_comfortable"),
             "share_safe_spacing": mean("share_safe_spacing"), "min_ttc": min(ttc) if ttc else None,
             "max_jerk": max(v["max_jerk"] for v in vals)}
 
@@ -180,6 +186,10 @@ def table_rows(results: dict) -> list[dict]:
                "collisions_per_hour": o and o["collisions_per_hour"], "comfortable": o and o["share_comfortable"],
                "safe_spacing": o and o["share_safe_spacing"], "min_ttc_s": o and o["min_ttc"],
                "max_jerk_mps3": o and o["max_jerk"], "episodes": len(c["episodes"]),
+               "preventable_collisions": o and o.get("preventable_collisions"),
+               "non_preventable_collisions": o and o.get("non_preventable_collisions"),
+               "collisions_r157": (o.get("preventable_collisions"), o.get("non_preventable_collisions"))
+               if o and "preventable_collisions" in o else None,
                "wall_time_s": c["wall_time_s"], "reason": c["reason"]}
         for suite in results["manifest"]["suites"]:
             s = c["summary"]["suites"][suite["name"]] if c["summary"] else None
@@ -231,6 +241,8 @@ def _fmt(key: str, value) -> str:
         from acc_gym.risk.isolated import format_risk
 
         return format_risk(value)
+    if key == "collisions_r157":
+        return "-" if value is None else f"{value[0]} / {value[1]}"
     if key == "string_stability":
         from acc_gym.evaluation.string_stability import format_verdict
 
@@ -250,7 +262,8 @@ def _fmt(key: str, value) -> str:
 
 HEADERS = {"rank": "#", "controller": "controller", "status": "status", "points": "points", "score": "paper score",
            "qualified": "qualified",
-           "collisions_per_hour": "collisions/h", "comfortable": "comfortable", "safe_spacing": "safe spacing",
+           "collisions_per_hour": "collisions/h", "collisions_r157": "preventable / not (R157)",
+           "comfortable": "comfortable", "safe_spacing": "safe spacing",
            "min_ttc_s": "min TTC [s]", "max_jerk_mps3": "max jerk [m/s^3]", "episodes": "episodes",
            "wall_time_s": "time [s]", "vs_above": "vs above"}
 
@@ -258,8 +271,8 @@ HEADERS = {"rank": "#", "controller": "controller", "status": "status", "points"
 def display_columns(results: dict) -> list[tuple[str, str]]:
     """(key, header) of the printed / Markdown / HTML ranking table."""
     cols = [(k, HEADERS[k]) for k in ("rank", "controller", "status", "points", "vs_above", "score", "qualified",
-                                       "collisions_per_hour", "min_ttc_s", "comfortable", "safe_spacing",
-                                       "max_jerk_mps3")]
+                                       "collisions_per_hour", "collisions_r157", "min_ttc_s", "comfortable",
+                                       "safe_spacing", "max_jerk_mps3")]
     suites = results["manifest"]["suites"]
     if len(suites) > 1:
         cols += [(f"points[{s['name']}]", s["name"]) for s in suites]
@@ -290,6 +303,8 @@ def formatted_rows(results: dict) -> tuple[list[str], list[list[str]]]:
     return [h for _, h in cols], rows
 
 
+R157_NOTE = ("preventable / not (R157): collisions that UN R157's careful and competent driver (the built-in "
+             "cc-driver) avoids in the same scenario / also has")
 UNCERTAINTY_NOTE = ("[low, high]: 95 % intervals (means: percentile bootstrap over episodes; qualified and collisions: "
                     "Clopper-Pearson); vs above: 'tie' when the paired difference in points to the row above is not "
                     "significant (95 % paired bootstrap interval contains 0), 'worse' when it is")
@@ -302,7 +317,7 @@ def text_table(results: dict) -> str:
     lines = ["  ".join(h.ljust(w) for h, w in zip(headers, widths)),
              "  ".join("-" * w for w in widths)]
     lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
-    lines += [UNCERTAINTY_NOTE]
+    lines += [UNCERTAINTY_NOTE, R157_NOTE]
     if _has_string_stability(results):
         lines += [string_stability_note(results)]
     lines += [f"failed: {c['name']}: {c['reason']}" for c in results["controllers"] if c["status"] != "ok"]
@@ -322,6 +337,7 @@ def markdown(results: dict) -> str:
              (f"Split `{m['split']}` of {suites}; ranked by mean points: paper 003's 100-point score, 0 for an "
               f"episode that ended in a collision (each suite weighs the same; equal figures share a rank). "
               f"acc_gym {m['versions']['acc_gym']}, {m['created']}."), "", UNCERTAINTY_NOTE + ".", "",
+             R157_NOTE + ".", "",
              *([string_stability_note(results) + ".", ""] if _has_string_stability(results) else []),
              "| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
     lines += ["| " + " | ".join(esc(c) for c in r) + " |" for r in rows]
@@ -334,7 +350,7 @@ def markdown(results: dict) -> str:
 def csv_text(results: dict) -> str:
     rows = table_rows(results)
     buf = io.StringIO()
-    nested = ("risk", "string_stability")  # as their numeric columns (risk_*, string_*)
+    nested = ("risk", "string_stability", "collisions_r157")  # as their numeric columns
     fields = [f for f in rows[0] if f not in nested] if rows else list(COLUMNS)
     writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
     writer.writeheader()

@@ -60,6 +60,30 @@ def grid():
     return out
 
 
+def staged_cut_in(gap_at_intrusion: float = 2.0, closing: float = 10.0):
+    """A cut-in nobody avoids (for tests and demonstrations): the ego at 30 m/s; a vehicle at
+    ``30 - closing`` m/s moves over in 1 s from t = 1 s and is in the ego's lane (0.4 s into its
+    move) ``gap_at_intrusion`` [m] ahead. At 2 m and 10 m/s closing, stopping the closing would
+    need 25 m/s^2."""
+    import dataclasses
+
+    from acc_gym.scenarios.registry import scenario_type
+    from acc_gym.scenarios.spec import DriverSpec, LaneChange
+    from acc_gym.simulation.profiles import SpeedProfile
+
+    st = scenario_type("singlelane/2/cut-in")
+    sc = st.build(st.sample_params(np.random.default_rng(0), {"v_sv": 30.0, "gap": 20.0, "v_rel": -closing,
+                                                              "t_lc": 1.0, "lc_duration": 2.5, "duration": 10.0}),
+                  0, "typical")
+    sv, pov = sc.vehicles[:2]
+    v = 30.0 - closing
+    x_intrusion = sv.x0 + 30.0 * 1.4 + gap_at_intrusion + pov.length  # its front when it enters the lane
+    pov = dataclasses.replace(pov, x0=x_intrusion - v * 1.4, v0=v,
+                              driver=DriverSpec.from_profile(SpeedProfile.from_segments(v, [(0.0, 20.0)])),
+                              lane_change=LaneChange(to_lane=pov.lane_change.to_lane, t_start=1.0, duration=1.0))
+    return dataclasses.replace(sc, vehicles=(sv, pov) + tuple(sc.vehicles[2:]))
+
+
 def _collides(env, controller, scenario) -> bool:
     from acc_gym.evaluation.runner import run_episode
 

@@ -1,0 +1,29 @@
+"""The leaderboard counts each collision as preventable or not (UN R157's careful and competent
+driver, run in the trusted simulation process on the same scenario)."""
+
+import csv
+import io
+
+from acc_gym.leaderboard import run_leaderboard
+from acc_gym.leaderboard.isolation import Job, preventable
+from acc_gym.leaderboard.results import R157_NOTE, csv_text, markdown, text_table
+
+
+def test_collisions_are_split_into_preventable_and_not():
+    r = run_leaderboard("ncap-v1", "test", ["constant", "acc"], episodes=4, workers=2, string_stability=False)
+    by = {c["name"]: c for c in r["controllers"]}
+    hits = [e for e in by["constant"]["episodes"] if e["metrics"]["collision"]]
+    assert len(hits) == 4 and all(e["preventable"] is True for e in hits)  # CCRs: the careful driver stops
+    assert all("preventable" not in e for e in by["acc"]["episodes"])  # no collision, no verdict
+    o = by["constant"]["summary"]["overall"]
+    assert o["preventable_collisions"] == 4 and o["non_preventable_collisions"] == 0
+    assert "4 / 0" in text_table(r) and R157_NOTE in text_table(r) and R157_NOTE in markdown(r)
+    rows = {row["controller"]: row for row in csv.DictReader(io.StringIO(csv_text(r)))}
+    assert rows["constant"]["preventable_collisions"] == "4" and rows["acc"]["preventable_collisions"] == "0"
+
+
+def test_a_staged_unavoidable_cut_in_is_not_preventable():
+    from acc_gym.standards.r157 import staged_cut_in
+
+    job = Job("staged", "test", 0, "acc_gym/SingleLane-v0", staged_cut_in())
+    assert preventable(job, {}) is False
