@@ -393,7 +393,10 @@ def _print_report(r: dict) -> None:
 
 def _print_summary(controller: str, env_id: str, s: dict) -> None:
     print(f"{controller} on {env_id}, {s['episodes']} episodes:")
-    print(f"  mean score {s['mean_score']:.1f}, qualified {s['share_qualified']:.0%}, collisions {s['collisions']}")
+    split = (f" ({s['preventable_collisions']} preventable by UN R157's careful driver, "
+             f"{s['non_preventable_collisions']} not)" if s.get("collisions") else "")
+    print(f"  mean score {s['mean_score']:.1f}, qualified {s['share_qualified']:.0%}, collisions {s['collisions']}"
+          + split)
     safe = "n/a" if s["share_safe_spacing"] is None else f"{s['share_safe_spacing']:.1%}"
     ttc = "none" if s["min_ttc"] is None else f"{s['min_ttc']:.2f} s"
     os_ = "n/a" if s["mean_speed_overshoot"] is None else f"{s['mean_speed_overshoot']:.2f}"

@@ -194,7 +194,7 @@ def evaluate(controller, env_id: str = "acc_gym/CarFollowing-v0", episodes: int 
     env = gym.make(env_id, **env_kwargs)
     declared = declared_time_gap(policy)
     options = None if declared is None else {"time_gap": declared}
-    reports, scenarios = [], []
+    reports, scenarios, collided = [], [], []
     try:
         obs, info = env.reset(seed=int(seed), options=options)
         for ep in range(int(episodes)):
@@ -212,9 +212,33 @@ def evaluate(controller, env_id: str = "acc_gym/CarFollowing-v0", episodes: int 
                     break
             reports.append(info["report"])
             scenarios.append(info["scenario"])
+            if info["report"]["metrics"]["collision"]:
+                collided.append(env.unwrapped.scenario)
     finally:
         env.close()
-    return summarise(reports, scenarios)
+    out = summarise(reports, scenarios)
+    out.update(preventability(collided, env_id, env_kwargs))
+    return out
+
+
+def preventability(scenarios: list, env_id: str, env_kwargs: dict | None = None) -> dict:
+    """UN R157's split of the collisions of ``scenarios`` (the built scenarios of collision
+    episodes): ``preventable_collisions`` (the careful and competent driver, the built-in
+    ``cc-driver``, avoids the same scenario) and ``non_preventable_collisions`` (it collides
+    too); see :mod:`acc_gym.standards.r157`."""
+    if not scenarios:
+        return {"preventable_collisions": 0, "non_preventable_collisions": 0}
+    import gymnasium as gym
+
+    from acc_gym.standards.r157 import REFERENCE, _collides
+
+    env = gym.make(env_id, **(env_kwargs or {}))
+    cc = load_controller(REFERENCE)
+    try:
+        avoided = [not _collides(env, cc, sc) for sc in scenarios]
+    finally:
+        env.close()
+    return {"preventable_collisions": sum(avoided), "non_preventable_collisions": len(avoided) - sum(avoided)}
 
 
 def summarise(reports: list[dict], scenarios: list[str]) -> dict:

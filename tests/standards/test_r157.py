@@ -45,3 +45,12 @@ def test_conformance_json_carries_the_r157_cases(capsys):
         assert {"family", "params", "controller_collides", "cc_driver_collides", "preventable"} <= set(c)
     with pytest.raises(SystemExit):
         main(["conformance", "constant", "--standard", "r158"])
+
+
+def test_evaluate_splits_its_collisions_by_preventability():
+    from acc_gym.evaluation.runner import evaluate
+
+    s = evaluate("constant", "acc_gym/NCAP-v0", episodes=3, seed=0, scenarios=("ncap/ccrs/30",))
+    assert s["collisions"] == 3 and s["preventable_collisions"] == 3 and s["non_preventable_collisions"] == 0
+    ok = evaluate("acc", "acc_gym/NCAP-v0", episodes=2, seed=0, scenarios=("ncap/ccrs/30",))
+    assert ok["collisions"] == 0 and ok["preventable_collisions"] == 0
