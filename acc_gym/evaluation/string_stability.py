@@ -581,6 +581,10 @@ def _simulate(actors, layout: np.ndarray, humans, lead: np.ndarray, gap0: np.nda
             errors[int(b)] = RowError(row_names[b], j + 1, (k + 1) * DT, f"collided with vehicle {j} "
                                       f"(gap {gap[b, j]:.2f} m)")
         rec["x"][k + 1], rec["v"][k + 1], rec["a"][k + 1] = x, v, a
+        if failed.all():  # every row has failed: nothing left to measure (the rest is NaN)
+            for arr in rec.values():
+                arr[k + 2:] = np.nan
+            break
     return _Run(np.arange(T + 1) * DT, rec["x"], rec["v"], rec["a"], errors)
 
 

@@ -58,9 +58,10 @@ def runs():
         before = {p: p.read_bytes() for p in watched}
         t0 = time.monotonic()
         mixed = run_leaderboard(SUITES, "test", ["acc", *CHEATS], episodes=3, workers=2, step_budget=1.0,
+                                string_stability=False,
                                 budget=120, out=out)
         wall = time.monotonic() - t0
-        alone = run_leaderboard(SUITES, "test", ["acc"], episodes=3, workers=1)
+        alone = run_leaderboard(SUITES, "test", ["acc"], episodes=3, workers=1, string_stability=False)
         yield {"mixed": mixed, "alone": alone, "out": out, "before": before, "wall": wall}
         target.unlink()
 
@@ -165,7 +166,7 @@ def test_an_unusable_bwrap_is_refused_before_anything_runs(monkeypatch, tmp_path
     monkeypatch.setattr(sandbox_mod, "_BWRAP_PROBES", {})
     out = tmp_path / "board"
     with pytest.raises(RuntimeError, match="bwrap.*not usable.*No permissions to create new namespace"):
-        run_leaderboard(["ncap-v1"], "test", ["acc"], episodes=1, out=out, sandbox="bwrap")
+        run_leaderboard(["ncap-v1"], "test", ["acc"], episodes=1, out=out, sandbox="bwrap", string_stability=False)
     assert not out.exists()
 
 
@@ -175,6 +176,7 @@ def test_bwrap_sandbox_contains_the_cheats_too(runs):
         mp.syspath_prepend(str(HERE))
         out = Path(tempfile.mkdtemp(prefix="acc-gym-bwrap-")) / "board"
         r = run_leaderboard(SUITES, "test", ["acc", "cheats:KillsOthers", "cheats:EditsFiles", "cheats:Introspects"],
+                            string_stability=False,
                             episodes=3, workers=2, budget=120, out=out, sandbox="bwrap")
     assert r["manifest"]["sandbox"]["kind"] == "bwrap"
     assert episodes(r, "acc") == episodes(runs["alone"], "acc")
