@@ -8,14 +8,17 @@ exactly the controller's desired acceleration (action * 3 above 0, action * 8 be
 The regulation's numbers are written out (0.4 s, 0.75 s, 0.6 s, 0.774 g) so that a changed
 table shows up here."""
 
+import importlib
 import math
 
 import numpy as np
 import pytest
 
 from acc_gym_agents.controllers import LinearACC
-from acc_gym_agents.controllers import cc_driver as ccm
 from acc_gym_agents.controllers.cc_driver import CCDriver, cc_driver, r157_cut_in_must_avoid
+
+# the module (the package's own name cc_driver is the factory function)
+ccm = importlib.import_module("acc_gym_agents.controllers.cc_driver")
 
 DT = 0.2  # [s]
 G_774 = 0.774 * 9.80665  # [m/s^2] full braking, 7.59

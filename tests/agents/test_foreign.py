@@ -28,10 +28,10 @@ EPISODES, SEED = 2, 11
 def by_hand(model, normalize=None) -> dict:
     """Drive the model as a user would, episode after episode from one seeded reset; the
     summary ``acc-gym evaluate --json`` prints for it."""
-    from acc_gym.evaluation.runner import summarise
+    from acc_gym.evaluation.runner import preventability, summarise
 
     env = gym.make(ENV)
-    reports, ids = [], []
+    reports, ids, collided = [], [], []
     obs, _ = env.reset(seed=SEED)
     for ep in range(EPISODES):
         if ep:
@@ -44,7 +44,11 @@ def by_hand(model, normalize=None) -> dict:
                 break
         reports.append(info["report"])
         ids.append(info["scenario"])
-    return json.loads(json.dumps(summarise(reports, ids)))
+        if info["report"]["metrics"]["collision"]:
+            collided.append(env.unwrapped.scenario)
+    out = summarise(reports, ids)
+    out.update(preventability(collided, ENV))
+    return json.loads(json.dumps(out))
 
 
 def cli_summary(capsys, ref, *extra) -> dict:
