@@ -97,9 +97,11 @@ def preventable(job: Job, envs: dict) -> bool:
     return not _collides(env, envs["_cc"], job.scenario)
 
 
-def episode_points(report: dict) -> float:
-    """The leaderboard's points for one episode: its 100-point score, 0 if it collided."""
-    return 0.0 if report["metrics"]["collision"] else float(report["score"])
+def episode_points(report: dict, preventable: bool = True) -> float:
+    """The leaderboard's points for one episode: its 100-point score, 0 if it ended in a
+    collision that was ``preventable`` (UN R157: the careful and competent driver avoids the same
+    scenario, :func:`preventable`); a collision nobody would have avoided keeps the score."""
+    return 0.0 if report["metrics"]["collision"] and preventable else float(report["score"])
 
 
 def worst_index(records: list[dict]) -> int | None:
@@ -333,6 +335,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
             done_records[j] = episode_record(jobs[j], info)
             if done_records[j]["metrics"]["collision"]:  # UN R157: would the careful driver have avoided it?
                 done_records[j]["preventable"] = preventable(jobs[j], cc_envs)
+                done_records[j]["points"] = episode_points(info["report"], done_records[j]["preventable"])
             conn.send(("episode", j, done_records[j]))
 
         run_batched(list(range(len(jobs))), record_episode)

@@ -12,9 +12,13 @@ minimum TTC is the smallest and maximum jerk the largest.
 
 Ranking (:data:`RANKING_RULE`): controllers that finished by overall mean **points**
 (descending), then the failed ones (unranked, with their reasons). An episode's points
-are its paper 003 100-point score, or **0 if it ended in a collision**: the paper's score
-gives a collider the safety item's 45 points, as much as a controller that never moves
-off its set speed's safe side, and a crash must cost more than any timid drive. Equal
+are its paper 003 100-point score, or **0 if it ended in a preventable collision**: the
+paper's score gives a collider the safety item's 45 points, as much as a controller that
+never moves off its set speed's safe side, and a crash must cost more than any timid
+drive -- unless nobody could have avoided it: a collision that UN R157's careful and
+competent driver (the built-in ``cc-driver``, driven on the same scenario by the trusted
+simulation) has too is non-preventable and keeps the episode's score (since 0.9.0; the
+collision still counts in the collision columns). Equal
 figures (within :data:`~acc_gym.reproducibility.SCORE_TOLERANCE`, what reproduces across
 machines) share a rank and are listed by name; there is no tie-break between different
 controllers' different figures other than the figures. The table shows mean points,
@@ -73,7 +77,9 @@ from acc_gym.leaderboard import uncertainty
 FORMAT = "acc_gym.leaderboard/1"
 HOUR = 3600.0
 RANKING_RULE = ("controllers rank by mean points (each suite weighs the same); an episode's points are its paper 003 "
-                "100-point score, or 0 if it ended in a collision; means equal within 1e-6 share a rank; a row whose "
+                "100-point score, or 0 if it ended in a preventable collision (one UN R157's careful and competent "
+                "driver, cc-driver, avoids in the same scenario; a non-preventable collision keeps the score); means "
+                "equal within 1e-6 share a rank; a row whose "
                 "paired difference in points to the row above has a 95 % paired bootstrap interval containing 0 is "
                 "marked a tie (vs_above; the order is unchanged)")
 
@@ -335,8 +341,8 @@ def markdown(results: dict) -> str:
 
     lines = ["# acc_gym leaderboard", "",
              (f"Split `{m['split']}` of {suites}; ranked by mean points: paper 003's 100-point score, 0 for an "
-              f"episode that ended in a collision (each suite weighs the same; equal figures share a rank). "
-              f"acc_gym {m['versions']['acc_gym']}, {m['created']}."), "", UNCERTAINTY_NOTE + ".", "",
+              f"episode that ended in a preventable collision (each suite weighs the same; equal figures share a "
+              f"rank). acc_gym {m['versions']['acc_gym']}, {m['created']}."), "", UNCERTAINTY_NOTE + ".", "",
              R157_NOTE + ".", "",
              *([string_stability_note(results) + ".", ""] if _has_string_stability(results) else []),
              "| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]

@@ -80,7 +80,7 @@ def test_every_cheat_ranks_below_the_honest_acc_or_fails(runs):
     for name in ("cheats:FullThrottle", "cheats:PatchesScorer", "cheats:Introspects"):
         eps = by[name]["episodes"]
         assert len(eps) == 6 and all(e["score"] < 100.0 for e in eps)
-        assert all(e["points"] == 0.0 for e in eps if e["metrics"]["collision"])
+        assert all(e["points"] == 0.0 for e in eps if e["metrics"]["collision"] and e["preventable"])
         assert sum(e["metrics"]["collision"] for e in eps) >= 3
 
 

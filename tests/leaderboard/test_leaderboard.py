@@ -70,7 +70,7 @@ def test_cli_prints_the_ranking_and_writes_four_files(cli_run):
 
     from acc_gym.leaderboard.results import RANKING_RULE
 
-    assert escape(RANKING_RULE) in html and "0 for an episode that ended in a collision" in md
+    assert escape(RANKING_RULE) in html and "0 for an episode that ended in a preventable collision" in md
 
 
 def test_results_manifest_and_ranking(cli_run):
@@ -236,7 +236,9 @@ def test_builtins_and_the_shipped_policy_score_as_under_evaluate(builtins_run):
             info, _ = run_episode(env, c["name"], seed=sc.seed, scenario=sc, record=False)
             env.close()
             assert e["score"] == info["score"], (c["name"], e["suite"], e["episode"])
-            assert e["points"] == (0.0 if info["report"]["metrics"]["collision"] else info["score"])
+            collided = info["report"]["metrics"]["collision"]
+            assert ("preventable" in e) == collided  # every collision is judged, and only collisions
+            assert e["points"] == (0.0 if collided and e["preventable"] else info["score"])
 
 
 def test_full_throttle_that_crashes_ranks_below_every_builtin_that_never_collides(builtins_run):

@@ -27,3 +27,25 @@ def test_a_staged_unavoidable_cut_in_is_not_preventable():
 
     job = Job("staged", "test", 0, "acc_gym/SingleLane-v0", staged_cut_in())
     assert preventable(job, {}) is False
+
+
+def test_a_non_preventable_collision_keeps_its_score_in_the_points():
+    from acc_gym.leaderboard.isolation import run_isolated
+    from acc_gym.standards.r157 import staged_cut_in
+
+    jobs = [Job("staged", "test", 0, "acc_gym/SingleLane-v0", staged_cut_in()),
+            Job("staged", "test", 1, "acc_gym/NCAP-v0", _ccrs())]
+    out = run_isolated(["constant"], jobs, workers=1, step_budget=1.0, budget=120.0)["constant"]
+    unavoidable, avoidable = sorted(out.episodes, key=lambda e: e["episode"])
+    assert unavoidable["metrics"]["collision"] and unavoidable["preventable"] is False
+    assert unavoidable["points"] == unavoidable["score"] > 0.0
+    assert avoidable["metrics"]["collision"] and avoidable["preventable"] is True and avoidable["points"] == 0.0
+
+
+def _ccrs():
+    import numpy as np
+
+    from acc_gym.scenarios.registry import scenario_type
+
+    st = scenario_type("ncap/ccrs/30")
+    return st.build(st.sample_params(np.random.default_rng(0)), 0, "typical")
