@@ -8,6 +8,9 @@ same directory, then ``os.replace``), so a reader never sees a half-written imag
 
 from __future__ import annotations
 
+import base64
+import html
+import io
 from pathlib import Path
 
 import matplotlib
@@ -152,6 +155,19 @@ def plot_string_stability(report, *, path=None) -> Figure:
     if path is not None:
         save_figure(fig, path)
     return fig
+
+
+def png_base64(fig: Figure, dpi: int = 90) -> str:
+    """``fig`` as a base64 PNG (for a self-contained HTML report)."""
+    FigureCanvasAgg(fig)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def img(fig: Figure, alt: str) -> str:
+    """An ``<img>`` element holding ``fig`` (:func:`png_base64`)."""
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{png_base64(fig)}">'
 
 
 def save_figure(fig: Figure, path, *, dpi: int = 100) -> Path:

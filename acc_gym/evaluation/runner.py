@@ -230,12 +230,12 @@ def preventability(scenarios: list, env_id: str, env_kwargs: dict | None = None)
         return {"preventable_collisions": 0, "non_preventable_collisions": 0}
     import gymnasium as gym
 
-    from acc_gym.standards.r157 import REFERENCE, _collides
+    from acc_gym.standards.r157 import REFERENCE, collides
 
     env = gym.make(env_id, **(env_kwargs or {}))
     cc = load_controller(REFERENCE)
     try:
-        avoided = [not _collides(env, cc, sc) for sc in scenarios]
+        avoided = [not collides(env, cc, sc) for sc in scenarios]
     finally:
         env.close()
     return {"preventable_collisions": sum(avoided), "non_preventable_collisions": len(avoided) - sum(avoided)}

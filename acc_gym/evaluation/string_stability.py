@@ -538,9 +538,9 @@ def _simulate(actors, layout: np.ndarray, humans, lead: np.ndarray, gap0: np.nda
     obs = np.empty((B * N, m), dtype=np.float32)
     a_des = np.zeros((B, N + 1))
     rng_ = cfg.sensor_range
+    gap = x[:, :-1] - LENGTH - x[:, 1:]  # (B, N) [m] to the vehicle ahead, kept up to date after each move
     for k in range(T):
         t = k * DT
-        gap = x[:, :-1] - LENGTH - x[:, 1:]
         o[0], o[1] = v[:, 1:], a[:, 1:]
         o[2] = np.where(gap <= rng_, gap, np.inf)
         o[3], o[4] = v[:, :-1], a[:, :-1]

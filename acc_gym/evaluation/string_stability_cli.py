@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+from acc_gym._cli_args import number_params
 from acc_gym.evaluation import string_stability as ss
 
 
@@ -39,23 +40,10 @@ def add_parser(sub) -> None:
                                                                  "disturbance's space-time diagram")
 
 
-def _params(items: list[str], parser) -> dict:
-    out = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        if not sep or not name.strip():
-            parser.error(f"--param {item!r}: expected NAME=VALUE")
-        try:
-            out[name.strip()] = float(value)
-        except ValueError:
-            parser.error(f"--param {item!r}: expected NAME=VALUE with a number")
-    return out
-
-
 def run(args, parser) -> int:
     from acc_gym.controllers import make_controller
 
-    params = _params(args.param, parser)
+    params = number_params(args.param, parser)
     controller = args.controller
     try:
         if params:

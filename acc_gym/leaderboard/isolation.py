@@ -89,12 +89,12 @@ def preventable(job: Job, envs: dict) -> bool:
     import gymnasium as gym
 
     from acc_gym.evaluation.runner import load_controller
-    from acc_gym.standards.r157 import REFERENCE, _collides
+    from acc_gym.standards.r157 import REFERENCE, collides
 
     env = envs.get(job.env_id) or envs.setdefault(job.env_id, gym.make(job.env_id))
     if "_cc" not in envs:
         envs["_cc"] = load_controller(REFERENCE)
-    return not _collides(env, envs["_cc"], job.scenario)
+    return not collides(env, envs["_cc"], job.scenario)
 
 
 def episode_points(report: dict, preventable: bool = True) -> float:

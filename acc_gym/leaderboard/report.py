@@ -11,15 +11,13 @@ episode (lowest score) as speed / gap / acceleration / mode traces
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from acc_gym.leaderboard.results import RANKING_RULE, formatted_rows
+from acc_gym.plotting import img
 
 CSS = """
 body { font-family: system-ui, sans-serif; margin: 2em; color: #222; }
@@ -29,17 +27,6 @@ th { background: #f0f0f0; } td:nth-child(2) { text-align: left; font-family: mon
 .failed { color: #a00; } code { background: #f4f4f4; padding: 0 0.2em; }
 img { max-width: 100%; } .small { font-size: 0.85em; color: #555; }
 """
-
-
-def png_base64(fig: Figure, dpi: int = 90) -> str:
-    FigureCanvasAgg(fig)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
-
-
-def img(fig: Figure, alt: str) -> str:
-    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{png_base64(fig)}">'
 
 
 def score_heatmap(results: dict, suite: str) -> Figure | None:

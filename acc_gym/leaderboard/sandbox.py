@@ -106,6 +106,14 @@ def serve(sock: socket.socket, reference: str) -> None:
             except Exception:  # noqa: BLE001  (not copyable: load it again)
                 return load_controller(reference)
 
+        def copy_for(key, start: bool):
+            """The copy answering ``key``'s rows: made on first use, ``reset()`` at an episode start."""
+            if key not in copies:
+                copies[key] = fresh()
+            if start and hasattr(copies[key], "reset"):
+                copies[key].reset()
+            return copies[key]
+
         from acc_gym.evaluation.runner import declared_time_gap
 
         protocol.send_hello(sock, declared_time_gap(pristine))
@@ -124,26 +132,12 @@ def serve(sock: socket.socket, reference: str) -> None:
                 # one row per slot (every episode's path): that slot's copy answers it. Several rows
                 # under one slot (a string-stability column position): one call with all of them when
                 # the controller is vectorised, else a copy per row (the same copy each step)
-                if len(rows) == 1 or vectorised:
-                    keys = [slot]
-                else:
-                    keys = [(slot, k) for k in range(len(rows))]
-                for key in keys:
-                    if key not in copies:
-                        copies[key] = fresh()
-                if len(keys) == 1:
-                    c = copies[slot]
-                    if starts[rows].any() and hasattr(c, "reset"):
-                        c.reset()
-                    if len(rows) == 1:
-                        actions[rows[0]] = _answer(c, obs[rows[0]], reference)
-                    else:
-                        actions[rows] = _answer_rows(c, obs[rows], reference)
+                if len(rows) > 1 and vectorised:
+                    actions[rows] = _answer_rows(copy_for(slot, starts[rows].any()), obs[rows], reference)
                     continue
-                for key, i in zip(keys, rows):
-                    if starts[i] and hasattr(copies[key], "reset"):
-                        copies[key].reset()
-                    actions[i] = _answer(copies[key], obs[i], reference)
+                for k, i in enumerate(rows):
+                    key = slot if len(rows) == 1 else (slot, k)
+                    actions[i] = _answer(copy_for(key, starts[i]), obs[i], reference)
             protocol.send_actions(sock, actions)
             step += 1
     except protocol.Closed:

@@ -6,6 +6,7 @@ import json
 import math
 import os
 
+from acc_gym._cli_args import number_params
 from acc_gym.risk.run import EVENTS, FAMILIES, RiskResult, estimate_risk
 
 
@@ -35,16 +36,7 @@ def add_parser(sub) -> None:
 
 
 def _params(items: list[str], parser) -> dict | None:
-    out = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        try:
-            out[name.strip()] = float(value)
-        except ValueError:
-            parser.error(f"--param {item!r}: expected NAME=VALUE with a number")
-        if not sep or not name.strip():
-            parser.error(f"--param {item!r}: expected NAME=VALUE")
-    return out or None
+    return number_params(items, parser) or None  # None: nothing held fixed
 
 
 def run(args, parser) -> int:

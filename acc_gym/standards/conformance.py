@@ -13,9 +13,7 @@ mean deceleration and 1 s mean jerk of the battery against speed, with the limit
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 import json
 import math
 from pathlib import Path
@@ -131,7 +129,11 @@ def plot_envelope(drives, path=None):
     return fig
 
 
-def html_report(result: dict, png: bytes | None = None) -> str:
+def html_report(result: dict, figures: dict | None = None) -> str:
+    """The HTML report; ``figures``: ``{"envelope": Figure, "preventability": Figure}`` to embed."""
+    from acc_gym.plotting import img
+
+    figures = figures or {}
     e = html.escape
     parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
              f"<title>conformance: {e(result['controller'])}</title>",
@@ -156,53 +158,40 @@ def html_report(result: dict, png: bytes | None = None) -> str:
         if iso["collisions"]:
             parts.append(f"<p>Not an envelope requirement: {len(iso['collisions'])} of {len(iso['drives'])} drives "
                          f"ended in a collision: {e(', '.join(iso['collisions']))}.</p>")
-        if png:
-            parts.append(f'<img alt="envelope" src="data:image/png;base64,{base64.b64encode(png).decode()}">')
+        if "envelope" in figures:
+            parts.append(img(figures["envelope"], "envelope"))
     r157 = result["standards"].get("r157")
     if r157 is not None:
         md = markdown({"controller": result["controller"], "standards": {"r157": r157}})
         body = md.split("\n", 2)[2] if md.count("\n") >= 2 else md
         parts.append("<pre>" + e(body) + "</pre>")
-        if result.get("_map_png"):
-            parts.append(f'<img alt="preventability map" src="data:image/png;base64,'
-                         f'{base64.b64encode(result["_map_png"]).decode()}">')
+        if "preventability" in figures:
+            parts.append(img(figures["preventability"], "preventability map"))
     parts.append("</body></html>")
     return "\n".join(parts)
 
 
 def write_reports(result: dict, out) -> dict:
-    """``conformance.json``, ``conformance.md``, ``conformance.html`` (the plot inside) and
-    ``envelope.png`` in ``out`` (each written atomically); returns the paths."""
+    """``conformance.json``, ``conformance.md``, ``conformance.html`` (the plots inside),
+    ``envelope.png`` and ``preventability.png`` in ``out`` (each written atomically); returns the paths."""
     from acc_gym._io import atomic_write
     from acc_gym.plotting import save_figure
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"json": out / "conformance.json", "markdown": out / "conformance.md", "html": out / "conformance.html"}
-    png = None
+    figures = {}
     if result.get("_drives"):
-        fig = plot_envelope(result["_drives"])
-        buf = io.BytesIO()
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-        FigureCanvasAgg(fig)
-        fig.savefig(buf, format="png", dpi=90)
-        png = buf.getvalue()
-        paths["png"] = save_figure(fig, out / "envelope.png")
+        figures["envelope"] = plot_envelope(result["_drives"])
+        paths["png"] = save_figure(figures["envelope"], out / "envelope.png")
     if "r157" in result["standards"]:
         from acc_gym.standards.r157 import plot_map
 
-        fig = plot_map(result["standards"]["r157"])
-        buf = io.BytesIO()
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-        FigureCanvasAgg(fig)
-        fig.savefig(buf, format="png", dpi=90)
-        result = {**result, "_map_png": buf.getvalue()}
-        paths["map"] = save_figure(fig, out / "preventability.png")
+        figures["preventability"] = plot_map(result["standards"]["r157"])
+        paths["map"] = save_figure(figures["preventability"], out / "preventability.png")
     atomic_write(paths["json"], to_json(result) + "\n")
     atomic_write(paths["markdown"], markdown(result))
-    atomic_write(paths["html"], html_report(result, png))
+    atomic_write(paths["html"], html_report(result, figures))
     return {k: str(v) for k, v in paths.items()}
 
 

@@ -84,7 +84,8 @@ def staged_cut_in(gap_at_intrusion: float = 2.0, closing: float = 10.0):
     return dataclasses.replace(sc, vehicles=(sv, pov) + tuple(sc.vehicles[2:]))
 
 
-def _collides(env, controller, scenario) -> bool:
+def collides(env, controller, scenario) -> bool:
+    """Whether ``controller`` (loaded) collides in ``scenario`` (built), run in ``env``."""
     from acc_gym.evaluation.runner import run_episode
 
     info, _ = run_episode(env, controller, scenario=scenario, record=False)
@@ -101,8 +102,8 @@ def preventability(controller, scenario, reference: str = REFERENCE) -> dict:
 
     env = gym.make(ENV_ID)
     try:
-        mine = _collides(env, load_controller(controller), scenario)
-        ref = _collides(env, load_controller(reference), scenario)
+        mine = collides(env, load_controller(controller), scenario)
+        ref = collides(env, load_controller(reference), scenario)
     finally:
         env.close()
     return {"controller_collides": mine, "cc_driver_collides": ref, "preventable": (not ref) if mine else None}
@@ -127,12 +128,12 @@ def r157_cases(controller, reference: str = REFERENCE) -> dict:
         stype = scenario_type(sid)
         sc = stype.build(stype.sample_params(np.random.default_rng([k, 157]), sparams), k, "typical")
         try:
-            mine = _collides(env, policy, sc)
+            mine = collides(env, policy, sc)
         except Exception as exc:  # noqa: BLE001  (a failing controller is a result)
             text = str(exc).splitlines()[0] if str(exc) else ""
             errors.append({"family": family, "params": params, "reason": f"{type(exc).__name__}: {text}"})
             continue
-        ref = _collides(env, cc, sc)
+        ref = collides(env, cc, sc)
         cases.append({"family": family, "params": params, "controller_collides": mine, "cc_driver_collides": ref,
                       "preventable": (not ref) if mine else None})
     env.close()
