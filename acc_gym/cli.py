@@ -36,7 +36,7 @@ scores a recorded drive (columns ``t, v, a, gap, v_lead``; see
                         [--step-budget 1] [--budget 600] [--episodes N] [--no-report] [--json]
 
 scores controllers (default: every built-in and the shipped ppo-acc and ppo), each in its own process with time budgets, on
-versioned suites (default: all four), prints the ranking and writes results.json,
+versioned suites (default: all five), prints the ranking and writes results.json,
 results.csv, leaderboard.md and report.html (see :mod:`acc_gym.leaderboard`).
 
     acc-gym string-stability CONTROLLER [--vehicles 8] [--speed 20] [--time-gap H] [--v2v]
@@ -45,7 +45,7 @@ results.csv, leaderboard.md and report.html (see :mod:`acc_gym.leaderboard`).
 runs N copies of a controller in a column: its frequency response vehicle to vehicle, a
 Gunter-like disturbance, and the verdict (see :mod:`acc_gym.evaluation.string_stability`).
 
-    acc-gym conformance CONTROLLER [--standard iso15622|all] [--seeds 0 1 2] [--json] [--out DIR]
+    acc-gym conformance CONTROLLER [--standard iso15622|r157|ncap|all] [--seeds 0 1 2] [--json] [--out DIR]
 
 checks a controller against ISO 15622's ACC envelope on the iso15622-v1 battery (see
 :mod:`acc_gym.standards`).
@@ -323,7 +323,7 @@ def _main(argv=None) -> int:
 def _add_campaign_parser(sub) -> None:
     p = sub.add_parser("campaign", help="run or resume a Monte Carlo campaign of a suite's traffic "
                                         "(needs pyarrow; Dask for --scheduler)")
-    p.add_argument("--suite", required=True, help="a suite name (singlelane-v3, carfollowing-v1, ncap-v1, "
+    p.add_argument("--suite", required=True, help="a suite name (singlelane-v3, carfollowing-v1, ncap-v1, ncap-v2, "
                                                    "malicious-v3)")
     p.add_argument("--hours", type=float, required=True, help="hours of traffic to simulate")
     p.add_argument("--controller", required=True, help="a built-in controller, module:attribute or a saved model")
@@ -409,8 +409,8 @@ def _add_leaderboard_parser(sub) -> None:
 
     p = sub.add_parser("leaderboard", help="score controllers on versioned suites and rank them")
     p.add_argument("--suite", action="append", default=None,
-                   help="a suite (carfollowing-v1, malicious-v3, ncap-v1, singlelane-v3); repeat or "
-                        "comma-separate for several (default: all four)")
+                   help="a suite (carfollowing-v1, malicious-v3, ncap-v1, ncap-v2, singlelane-v3); repeat or "
+                        "comma-separate for several (default: all of them)")
     p.add_argument("--split", default="test",
                    help="dev, test or private (default test): develop on dev, publish on test, rank officially "
                         "on private")

@@ -5,8 +5,9 @@
 
 Each controller goes through ``acc-gym conformance NAME``: ISO 15622 on the iso15622-v1
 battery (seeds 0-2; a cell is the worst measured value, bold where it is outside the limit)
-and UN R157's preventability on its 34 cases (collisions the careful and competent driver
-avoids / also has).
+UN R157's preventability on its grid cases (collisions the careful and competent driver
+avoids / also has), and Euro NCAP 2026's ACC performance score (the rating calculator's
+percentage over the five car-to-car test types; ``-`` without the ``ncap`` extra).
 """
 
 from __future__ import annotations
@@ -23,10 +24,15 @@ SHORT = {"mean automatic deceleration over 2 s": "decel. 2 s [m/s^2]", "mean jer
          "no automatic go while the target stays stopped": "creep at standstill [m]"}
 
 
+def _ncap(res: dict) -> str:
+    pct = res["standards"]["ncap"]["score_percent"]
+    return "-" if pct is None else f"{pct:.1f}"
+
+
 def table(results: list[dict]) -> str:
     reqs = results[0]["standards"]["iso15622"]["requirements"]
-    lines = ["| controller | ISO 15622 | " + " | ".join(SHORT[r["name"]] for r in reqs) + " | collided drives | R157: preventable / non-preventable collisions |",
-             "|---|---|" + "---|" * len(reqs) + "---|---|"]
+    lines = ["| controller | ISO 15622 | " + " | ".join(SHORT[r["name"]] for r in reqs) + " | collided drives | R157: preventable / non-preventable collisions | Euro NCAP 2026 ACC [%] |",
+             "|---|---|" + "---|" * len(reqs) + "---|---|---|"]
     for res in results:
         iso = res["standards"]["iso15622"]
         cells = []
@@ -41,7 +47,7 @@ def table(results: list[dict]) -> str:
         prev = r157["preventable_collisions"]
         lines.append(f"| {res['controller']} | {verdict} | " + " | ".join(cells) +
                      f" | {len(iso['collisions'])} of {len(iso['drives'])} | {f'**{prev}**' if prev else prev} / "
-                     f"{r157['non_preventable_collisions']} of {len(r157['cases'])} |")
+                     f"{r157['non_preventable_collisions']} of {len(r157['cases'])} | {_ncap(res)} |")
     return "\n".join(lines)
 
 
@@ -50,7 +56,7 @@ def main(argv=None) -> int:
     ap.add_argument("--controllers", nargs="+", default=list(CONTROLLERS))
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    results = [conformance(c, ("iso15622", "r157"), name=c) for c in args.controllers]
+    results = [conformance(c, ("iso15622", "r157", "ncap"), name=c) for c in args.controllers]
     print(table(results))
     if args.json:
         print("[" + ", ".join(to_json(r) for r in results) + "]")

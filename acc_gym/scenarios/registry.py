@@ -243,4 +243,4 @@ def _load() -> None:
     global _LOADED
     if not _LOADED:
         _LOADED = True
-        from acc_gym.scenarios import carfollowing, ncap, singlelane, stopandgo  # noqa: F401
+        from acc_gym.scenarios import carfollowing, ncap, ncap2026, singlelane, stopandgo  # noqa: F401

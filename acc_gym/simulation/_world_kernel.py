@@ -13,6 +13,8 @@ a scene. These kernels do the same arithmetic in one pass per phase:
   then *who is ahead* by lane-corridor overlap (the nearest and second-nearest vehicle
   whose front bumper is ahead and whose contour overlaps the corridor; ties go to the
   lower slot, as a stable sort would), and the sticky collision flags;
+* :func:`mark_passed`: a collision inside a step that the end-of-step gaps miss (a fast
+  vehicle driving into and past a slow one within one step);
 * :func:`observe_all`: every slot's :class:`~acc_gym.drivers.base.Observation` fields at
   once (sensor range applied), as ``(S, 8, B)`` so each field of a slot is contiguous.
 
@@ -112,6 +114,33 @@ def refresh(t, y0, y1, t_start, duration, x, lengths, present, width, lane_width
 
 
 @numba.njit(cache=True, error_model="numpy")
+def mark_passed(x_prev, x, lengths, present, y, width, lane_width, lead, gap, collided):  # pragma: no cover
+    """Collisions inside a step that the end-of-step gaps cannot see: a vehicle ``j`` whose rear
+    was ahead of ``i``'s front before the step (gap > 0), is in ``i``'s lane corridor now and
+    whose rear is now behind ``i``'s front (gap <= 0) without its front still being ahead --
+    ``i`` drove into and past it within one step (at 0.2 s that takes a closing speed above
+    ``L_j / dt``, 23.5 m/s for a 4.7 m car). Decided: it is a collision like any other -- ``i``'s
+    lead becomes ``j`` with that (negative) gap, so every reader of the gaps (the env's
+    termination, the metrics, the traces) sees it, and the sticky flag is set. Vehicles that
+    are ahead by the usual rule are left to :func:`refresh`."""
+    B, S = x.shape
+    for b in range(B):
+        for i in range(S):
+            if not present[b, i] or gap[b, i] <= 0.0:
+                continue
+            for j in range(S):
+                if j == i or not present[b, j] or x[b, j] > x[b, i]:
+                    continue
+                if not (abs(y[b, j] - y[b, i]) < 0.5 * (lane_width + width[b, j])):
+                    continue
+                g = (x[b, j] - lengths[b, j]) - x[b, i]
+                if (x_prev[b, j] - lengths[b, j]) - x_prev[b, i] > 0.0 and g <= 0.0 and g < gap[b, i]:
+                    lead[b, i] = j
+                    gap[b, i] = g
+                    collided[b, i] = True
+
+
+@numba.njit(cache=True, error_model="numpy")
 def observe_all(v, a, lead, gap, lead2, gap2, sensor_range, out):  # pragma: no cover - compiled
     """``out[s, f, b]``: field ``f`` (:data:`OBS_FIELDS`) of slot ``s``'s vehicle in scene ``b``."""
     B, S = v.shape
@@ -137,7 +166,7 @@ def move(a_des, present, x, v, vp, dt, k, y0, y1, t_start, duration, lengths, wi
          sensor_range, F, I, obs, t):  # pragma: no cover - compiled
     """:meth:`~acc_gym.simulation.single_lane.SingleLaneWorld.move` and the next state's
     :func:`observe_all` in one call: :func:`advance`, ``k += 1``, the times ``t = k dt``,
-    :func:`refresh` with collision marking. Outputs in ``F`` (x, v, a, a_des, y, a_y, gap,
+    :func:`refresh` with collision marking, :func:`mark_passed`. Outputs in ``F`` (x, v, a, a_des, y, a_y, gap,
     gap2), ``I`` (lead, lead2), ``obs`` and ``t`` (see ``SingleLaneWorld.move_buffers``)."""
     advance(a_des, present, x, v, vp, dt, F[0], F[1], F[2], F[3])
     for b in range(k.shape[0]):
@@ -145,6 +174,7 @@ def move(a_des, present, x, v, vp, dt, k, y0, y1, t_start, duration, lengths, wi
         t[b] = k[b] * dt
     refresh(t, y0, y1, t_start, duration, F[0], lengths, present, width, lane_width, F[4], F[5], I[0], F[6], I[1],
             F[7], collided, True)
+    mark_passed(x, F[0], lengths, present, F[4], width, lane_width, I[0], F[6], collided)
     observe_all(F[1], F[2], I[0], F[6], I[1], F[7], sensor_range, obs)
 
 

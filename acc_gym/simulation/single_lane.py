@@ -395,13 +395,18 @@ class SingleLaneWorld:
 
     def move_reference(self, a_des: np.ndarray) -> None:
         """:meth:`move` as separate calls: :func:`~acc_gym.simulation._world_kernel.advance`,
-        then :meth:`_refresh` (observations made on first use)."""
+        then :meth:`_refresh` and :func:`~acc_gym.simulation._world_kernel.mark_passed`
+        (observations made on first use)."""
         x, v, a, applied_des = np.empty((4, self.B, self.S))  # fresh arrays (one allocation): callers may keep the old
         # Eq. (3) and exact integration (acc_gym.vehicle.applied_acceleration / integrate, compiled)
         _K.advance(a_des, self.present, self.x, self.v, self._vp, self.dt, x, v, a, applied_des)
+        x_prev = self.x
         self.x, self.v, self.a, self.a_des = x, v, a, applied_des
         self.k += 1
         self._refresh(mark=True)
+        nb = self.neighbours
+        _K.mark_passed(x_prev, self.x, self.lengths, self.present, self.y, self.width, float(self.road.lane_width),
+                       nb.lead, nb.gap, self.collided)
 
     def move_buffers(self) -> tuple:
         """Fresh output arrays for one :meth:`move` done by a caller's compiled kernel

@@ -1,14 +1,22 @@
 """``acc-gym conformance``: a controller's verdicts by the standards, as JSON, Markdown and HTML.
 
-    acc-gym conformance acc                       # ISO 15622 on the iso15622-v1 battery
+    acc-gym conformance acc                       # every standard: iso15622, r157, ncap
+    acc-gym conformance acc --standard iso15622   # ISO 15622 on the iso15622-v1 battery
     acc-gym conformance mymodule:MyACC --json
-    acc-gym conformance acc --out conformance/    # conformance.json, .md, .html and envelope.png
+    acc-gym conformance acc --out conformance/    # conformance.json, .md, .html and the plots
 
 The JSON object: ``{"controller", "standards": {"iso15622": {"standard", "battery", "passed",
 "requirements": [{"name", "measured", "limit", "unit", "passed", "where", ...}], "drives",
-"errors"}}}``. A drive the controller fails (it raises, answers NaN) is named under
-``errors`` and the rest of the report is still written. The envelope plot draws every 2 s
-mean deceleration and 1 s mean jerk of the battery against speed, with the limits.
+"errors"}, "r157": {"cases": [{"family", "params", "controller_collides", "cc_driver_collides",
+"preventable"}], "preventable_collisions", "non_preventable_collisions", "errors"}, "ncap":
+{"protocol", "calculator", "score_percent", "test_types", "tests": [...], "frontal_collisions",
+"out_of_scope", "errors"}}}`` (:mod:`acc_gym.standards.iso15622`, :mod:`~acc_gym.standards.r157`,
+:mod:`~acc_gym.standards.ncap`). A drive, case or test the controller fails (it raises,
+answers NaN) is named under its standard's ``errors`` and the rest of the report is still
+written; Euro NCAP's score needs the ``ncap`` extra (without it the tests are still driven
+and reported, ``score_percent`` is null and ``calculator`` says what to install). The
+envelope plot draws every 2 s mean deceleration and 1 s mean jerk of the battery against
+speed, with the limits.
 """
 
 from __future__ import annotations
@@ -23,7 +31,7 @@ import numpy as np
 from acc_gym.standards import battery as batteries
 from acc_gym.standards import iso15622
 
-STANDARDS = ("iso15622", "r157")
+STANDARDS = ("iso15622", "r157", "ncap")
 
 
 def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name: str | None = None) -> dict:
@@ -46,6 +54,10 @@ def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name
         from acc_gym.standards.r157 import r157_cases
 
         out["standards"]["r157"] = r157_cases(controller)
+    if "ncap" in standards:
+        from acc_gym.standards.ncap import ncap_report
+
+        out["standards"]["ncap"] = ncap_report(controller)
     return out
 
 
@@ -81,8 +93,10 @@ def markdown(result: dict) -> str:
     r157 = result["standards"].get("r157")
     if r157 is not None:
         n = len(r157["cases"])
+        families = list(dict.fromkeys(c["family"] for c in r157["cases"]))  # in the grid's order
+        grids = (", ".join(families[:-1]) + " and " + families[-1]) if len(families) > 1 else "".join(families)
         lines += [f"## UN R157: preventability against the careful and competent driver (`{r157['reference']}`)", "",
-                  f"{n} cases (lead deceleration and cut-in grids): **{r157['preventable_collisions']} preventable** "
+                  f"{n} cases{f' ({grids} grids)' if families else ''}: **{r157['preventable_collisions']} preventable** "
                   f"collisions (the C&C driver avoids them), {r157['non_preventable_collisions']} non-preventable "
                   f"(it collides too).", ""]
         hit = [c for c in r157["cases"] if c["controller_collides"]]
@@ -95,7 +109,44 @@ def markdown(result: dict) -> str:
         for e in r157["errors"]:
             lines.append(f"\nFailed case: {e['family']} {e['params']}: {e['reason']}")
         lines.append("")
+    ncap = result["standards"].get("ncap")
+    if ncap is not None:
+        lines += ncap_markdown(ncap)
     return "\n".join(lines)
+
+
+def ncap_markdown(ncap: dict) -> list:
+    """The Euro NCAP section's lines (:func:`acc_gym.standards.ncap.ncap_report`'s result)."""
+    pct = ncap["score_percent"]
+    lines = [f"## {ncap['protocol']}: {'not scored' if pct is None else f'**{pct:.1f} %**'}", "",
+             f"Scored by {ncap['calculator']}, each test point simulated once (a green prediction per point: the "
+             "score is what the measured speed reduction earns).", ""]
+    if ncap["test_types"]:
+        lines += ["| test type | score | of | % |", "|---|---|---|---|"]
+        for name, t in ncap["test_types"].items():
+            lines.append(f"| {name} | {t['score']:.3f} | {t['max']:g} | {t['percent']:.1f} |")
+        lines.append("")
+    lines += ["| test | VUT / target [km/h] | collision | impact [km/h] | v_reduction [km/h] | green above | result |",
+              "|---|---|---|---|---|---|---|"]
+    for t in ncap["tests"]:
+        if t["skip"]:
+            result = f"not run: {t['skip']}"
+        else:
+            result = t.get("colour") or "-"
+        coll = "-" if t["collision"] is None else ("**yes**" if t["collision"] else "no")
+        lines.append(f"| {t['scenario_id']} | {t['vut_speed']} / {t['target_speed']} | {coll} | "
+                     f"{_num(t['impact_speed'])} | {_num(t['v_reduction'])} | {_num(t.get('green_threshold'))} | "
+                     f"{result} |")
+    fc = ncap["frontal_collisions"]
+    hit = [t["scenario_id"] for t in fc if t["collision"]]
+    lines += ["", f"Frontal-collision (AEB) points driven by the controller alone (reported, not scored): "
+              f"{len(fc) - len(hit)} of {len(fc)} avoided" + (f"; collisions in {', '.join(hit)}." if hit else "."),
+              "", "Not run (outside the single-lane longitudinal model): "
+              + "; ".join(f"{k} ({v})" for k, v in ncap["out_of_scope"].items()) + "."]
+    for e in ncap["errors"]:
+        lines.append(f"\nFailed test: {e['scenario_id']}: {e['reason']}")
+    lines.append("")
+    return lines
 
 
 def plot_envelope(drives, path=None):
@@ -167,6 +218,9 @@ def html_report(result: dict, figures: dict | None = None) -> str:
         parts.append("<pre>" + e(body) + "</pre>")
         if "preventability" in figures:
             parts.append(img(figures["preventability"], "preventability map"))
+    ncap = result["standards"].get("ncap")
+    if ncap is not None:
+        parts.append(f"<h2>{e(ncap['protocol'])}</h2><pre>" + e("\n".join(ncap_markdown(ncap)[1:])) + "</pre>")
     parts.append("</body></html>")
     return "\n".join(parts)
 
@@ -197,7 +251,8 @@ def write_reports(result: dict, out) -> dict:
 
 def add_parser(sub) -> None:
     p = sub.add_parser("conformance", help="a controller's verdicts by published standards: ISO 15622's ACC "
-                                            "envelope on the iso15622-v1 battery, UN R157's preventability")
+                                            "envelope on the iso15622-v1 battery, UN R157's preventability, "
+                                            "Euro NCAP 2026's ACC performance score")
     p.add_argument("controller", help="a registered name, module:attribute or a saved model")
     p.add_argument("--standard", default="all", help=f"one of {', '.join(STANDARDS)} or all (default all)")
     p.add_argument("--seeds", type=int, nargs="+", default=list(batteries.SEEDS),

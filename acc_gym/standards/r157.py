@@ -16,10 +16,45 @@ scenarios (each grid a documented choice [R]; the regulation's own sweeps are wi
 * **cut-in** (paper 004's ``singlelane/2/cut-in``): the ego at ``ego_speed`` (20 or 30 m/s),
   the other vehicle ``gap`` (5, 10, 20 or 40 m) ahead in the next lane, ``other_speed`` 2 or
   6 m/s slower, changing lanes from 1 s on over 3 s (``lateral_speed`` = lane width / 3 s);
-  20 s long.
+  20 s long;
+* **cut-out** (staged by hand, :func:`staged_cut_out`, id ``r157/cut-out``): the ego at
+  ``ego_speed`` (60 / 90 / 120 km/h) follows a lead at its own speed, ``time_headway`` 1 s
+  behind it (bumper gap = headway x speed); ahead of the lead in the same lane a slower
+  vehicle stands or drives at ``other_speed`` (0 or 20 km/h); the lead moves out to the next
+  lane and reveals it ``gap`` = 1.5, 2.5 or 3.5 s x ``ego_speed`` ahead of the ego; 20 s long.
 
-Cut-outs are not in the grid yet: the package's cut-out scenarios reveal a free road or a
-following vehicle, not the slower or stopped one R157's cut-out test reveals.
+The cut-out's decisions [R]:
+
+* ``gap`` [m] is the ego's bumper distance to the revealed vehicle at the **reveal**, the first
+  step whose observation shows it (t = 6 s, :data:`CUT_OUT_REVEAL`), with the ego assumed at
+  ``ego_speed`` until then (a controller that holds its speed is exactly there; the linear ACC
+  law and ``cc-driver`` settle at ``time_headway x speed + 2.5 m`` and are up to 2.5 m farther
+  back). The grid states it as a time headway at the reveal
+  (``gap / ego_speed`` = 1.5, 2.5, 3.5 s) because the C&C driver reacts to a cut-out only below
+  a 2 s headway to the revealed vehicle; the grid straddles that gate. Below it the C&C
+  response (0.4 s perception, 0.75 s reaction at 0.4 m/s^2, a 0.6 s ramp to 0.774 g) needs
+  more than 2 s x speed to stop for a stopped vehicle from 60 km/h up, so there it collides;
+  above it ``cc-driver`` drives on its careful following law, which brakes at once.
+* ``time_headway`` is 1 s, the short end of common ACC settings (ISO 15622 allows 0.8 s):
+  the lead must leave the lane before it reaches the revealed vehicle, so the reveal headway
+  exceeds ``time_headway`` + 4.7 m / speed, and only a short following headway leaves room
+  below the C&C driver's 2 s gate. It is also the scenario's nominal time gap (the
+  observation's time-gap field, which ACC laws follow).
+* The lead's lateral move is a half-cosine over one lane in 3 s (:data:`CUT_OUT_LC_DURATION`,
+  as the cut-in grid's: mean lateral speed 1.25 m/s, peak 1.96 m/s), timed so that its contour
+  leaves the ego's lane half a step (0.1 s) before the reveal. The world drops a vehicle from
+  the lane corridor once its contour has left the lane (:mod:`acc_gym.simulation.single_lane`),
+  for the ego and the lead alike.
+* The lead and the revealed vehicle keep their speeds (speed profiles: neither reacts to
+  anything), so the lead must not reach the slower vehicle while in its lane: ``gap >
+  time_headway x ego_speed + 4.7 m`` (the lead's length), else a ValueError. The environments
+  judge the ego's collisions only (its gap to whoever is ahead of it); a lead running into the
+  slower vehicle would go unreported, hence the check.
+* The revealed vehicle is 10 m long (:data:`CUT_OUT_OTHER_LENGTH`, a van or small truck):
+  longer than the most the ego closes in over one step (33.3 m/s x 0.2 s = 6.7 m at 120 km/h
+  onto a stopped one), so a collision shows as a gap <= 0 at the end of a step even where the
+  world checks only the end-of-step gaps (a 4.7 m car can be driven into and past within one
+  step at that closing speed).
 """
 
 from __future__ import annotations
@@ -35,6 +70,13 @@ LEAD_DECEL_GRID = {"ego_speed": (60 / 3.6, 90 / 3.6, 120 / 3.6), "lead_decel": (
                    "time_headway": (1.0, 2.0)}
 CUT_IN_GRID = {"ego_speed": (20.0, 30.0), "gap": (5.0, 10.0, 20.0, 40.0), "closing": (2.0, 6.0)}
 CUT_IN_START, CUT_IN_DURATION = 1.0, 3.0  # [s] the lane change: from 1 s on, over 3 s
+CUT_OUT_GRID = {"ego_speed": (60 / 3.6, 90 / 3.6, 120 / 3.6), "other_speed": (0.0, 20 / 3.6),
+                "reveal_headway": (1.5, 2.5, 3.5)}  # [m/s], [m/s], [s] (gap = reveal_headway x ego_speed)
+CUT_OUT_HEADWAY = 1.0  # [s] the ego's time headway to the lead before it leaves
+CUT_OUT_REVEAL = 6.0  # [s] the reveal: the first step whose observation shows the revealed vehicle
+CUT_OUT_LC_DURATION = 3.0  # [s] the lead's half-cosine move over one lane (mean 1.25 m/s lateral)
+CUT_OUT_OTHER_LENGTH = 10.0  # [m] the revealed vehicle (longer than one step's closing at 120 km/h)
+CUT_OUT_ID = "r157/cut-out"  # built by staged_cut_out, not a registered scenario type
 ENV_ID = "acc_gym/SingleLane-v0"
 
 
@@ -43,7 +85,8 @@ def _round(params: dict) -> dict:
 
 
 def grid():
-    """``(family, params, scenario id, scenario parameters)`` of every case, in a fixed order."""
+    """``(family, params, scenario id, scenario parameters)`` of every case, in a fixed order (the
+    cut-out family last; its scenario parameters are :func:`staged_cut_out`'s arguments)."""
     out = []
     for v, decel, h in itertools.product(*LEAD_DECEL_GRID.values()):
         params = _round({"ego_speed": v, "lead_decel": decel, "time_headway": h})
@@ -57,6 +100,9 @@ def grid():
         out.append(("cut-in", params, "singlelane/2/cut-in",
                     {"v_sv": v, "gap": gap, "v_rel": -closing, "t_lc": CUT_IN_START, "lc_duration": CUT_IN_DURATION,
                      "duration": DURATION}))
+    for v, other, reveal in itertools.product(*CUT_OUT_GRID.values()):
+        params = _round({"ego_speed": v, "other_speed": other, "gap": reveal * v, "time_headway": CUT_OUT_HEADWAY})
+        out.append(("cut-out", params, CUT_OUT_ID, dict(params)))
     return out
 
 
@@ -84,6 +130,73 @@ def staged_cut_in(gap_at_intrusion: float = 2.0, closing: float = 10.0):
     return dataclasses.replace(sc, vehicles=(sv, pov) + tuple(sc.vehicles[2:]))
 
 
+def staged_cut_out(ego_speed: float, time_headway: float, other_speed: float, gap: float, seed: int = 0,
+                   duration: float = DURATION):
+    """R157's cut-out: the ego (``"SV"``, lane 1) at ``ego_speed`` [m/s] follows a lead (``"POV"``)
+    at the same speed, ``time_headway`` [s] behind it (bumper gap ``time_headway x ego_speed``);
+    ahead of the lead in the same lane a vehicle (``"POV2"``, 10 m long) drives at ``other_speed``
+    [m/s] (0: stopped). The lead moves to lane 2 in :data:`CUT_OUT_LC_DURATION` s, its contour
+    leaving lane 1 half a step before :data:`CUT_OUT_REVEAL`, when the ego, if it held
+    ``ego_speed``, is ``gap`` [m] (bumper to bumper) behind POV2. Both others keep their speeds
+    (speed profiles). Built by hand (id :data:`CUT_OUT_ID`, ``params`` the four values).
+
+    ValueError, naming the value: a speed out of range, ``other_speed`` not below ``ego_speed``
+    (nothing to reveal), a non-positive headway or gap, or a ``gap`` at which the lead would reach
+    POV2 before leaving the lane (``gap <= time_headway x ego_speed + 4.7 m``)."""
+    import math
+
+    from acc_gym.scenarios.singlelane import DT, EGO_LANE, LENGTH, ROAD, SIDE_LANE, entry_phase
+    from acc_gym.scenarios.spec import MAX_SPEED, MAX_TIME_GAP, DriverSpec, LaneChange, Scenario, VehicleSpec
+    from acc_gym.simulation.profiles import SpeedProfile
+
+    values = {"ego_speed": ego_speed, "time_headway": time_headway, "other_speed": other_speed, "gap": gap}
+    for name, x in {**values, "duration": duration}.items():
+        if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) or not math.isfinite(x):
+            raise ValueError(f"staged_cut_out: {name} must be a finite number, got {x!r}")
+    if not 0.0 < ego_speed <= MAX_SPEED:
+        raise ValueError(f"staged_cut_out: ego_speed must be in (0, {MAX_SPEED:g}] m/s, got {ego_speed!r}")
+    if not 0.0 <= other_speed < ego_speed:
+        raise ValueError(f"staged_cut_out: other_speed must be >= 0 and below ego_speed ({ego_speed:g} m/s), "
+                         f"got {other_speed!r}")
+    if not 0.0 < time_headway <= MAX_TIME_GAP:
+        raise ValueError(f"staged_cut_out: time_headway must be in (0, {MAX_TIME_GAP:g}] s, got {time_headway!r}")
+    if not gap > 0.0:
+        raise ValueError(f"staged_cut_out: gap must be > 0 m, got {gap!r}")
+    lead_clearance = gap - time_headway * ego_speed - LENGTH  # [m] lead front to POV2's rear at the reveal
+    if lead_clearance <= 0.0:
+        raise ValueError(f"staged_cut_out: gap {gap!r} m leaves the lead no room: it would reach the other vehicle "
+                         f"before leaving the lane (gap must exceed time_headway x ego_speed + {LENGTH:g} m = "
+                         f"{time_headway * ego_speed + LENGTH:g} m)")
+    if duration <= CUT_OUT_REVEAL:
+        raise ValueError(f"staged_cut_out: duration must exceed the reveal at {CUT_OUT_REVEAL:g} s, got {duration!r}")
+    # the lead's contour leaves lane 1 at phase 1 - entry_phase() of its move, half a step before the reveal
+    t_lc = CUT_OUT_REVEAL - 0.5 * DT - (1.0 - entry_phase()) * CUT_OUT_LC_DURATION
+
+    def steady(speed):  # [m/s] held for the whole scenario
+        return DriverSpec.from_profile(SpeedProfile.from_segments(float(speed), [(0.0, float(duration))]))
+
+    x_other = (ego_speed - other_speed) * CUT_OUT_REVEAL + gap + CUT_OUT_OTHER_LENGTH  # [m] POV2's front at t = 0
+    vehicles = (VehicleSpec("SV", 0.0, ego_speed, EGO_LANE, None, None, LENGTH),
+                VehicleSpec("POV", time_headway * ego_speed + LENGTH, ego_speed, EGO_LANE, steady(ego_speed),
+                            LaneChange(SIDE_LANE, t_lc, CUT_OUT_LC_DURATION), LENGTH),
+                VehicleSpec("POV2", x_other, other_speed, EGO_LANE, steady(other_speed), None,
+                            CUT_OUT_OTHER_LENGTH))
+    return Scenario(id=CUT_OUT_ID, seed=seed, params={k: float(v) for k, v in values.items()}, vehicles=vehicles,
+                    duration=duration, set_speed=ego_speed, time_gap=time_headway, road=ROAD, dt=DT,
+                    drivers="custom", description="R157 cut-out: the lead leaves the ego's lane and reveals a "
+                                                  "slower or stopped vehicle.")
+
+
+def _build_case(k: int, sid: str, sparams: dict):
+    """Case ``k`` of :func:`grid` as a Scenario (its generator seeded ``[k, 157]``)."""
+    if sid == CUT_OUT_ID:
+        return staged_cut_out(**sparams, seed=k)
+    from acc_gym.scenarios.registry import scenario_type
+
+    stype = scenario_type(sid)
+    return stype.build(stype.sample_params(np.random.default_rng([k, 157]), sparams), k, "typical")
+
+
 def collides(env, controller, scenario) -> bool:
     """Whether ``controller`` (loaded) collides in ``scenario`` (built), run in ``env``."""
     from acc_gym.evaluation.runner import run_episode
@@ -109,8 +222,9 @@ def preventability(controller, scenario, reference: str = REFERENCE) -> dict:
     return {"controller_collides": mine, "cc_driver_collides": ref, "preventable": (not ref) if mine else None}
 
 
-def r157_cases(controller, reference: str = REFERENCE) -> dict:
-    """Every case of :func:`grid` for ``controller`` and the C&C ``reference``; JSON-safe:
+def r157_cases(controller, reference: str = REFERENCE, families=None) -> dict:
+    """Every case of :func:`grid` (or those of ``families``, names of its families) for
+    ``controller`` and the C&C ``reference``; JSON-safe:
     ``{"cases": [{"family", "params", "controller_collides", "cc_driver_collides", "preventable"}],
     "preventable_collisions", "non_preventable_collisions", "errors"}`` (``preventable`` is None
     where the controller does not collide). A case the controller fails is named in ``errors``."""
@@ -118,25 +232,33 @@ def r157_cases(controller, reference: str = REFERENCE) -> dict:
 
     import acc_gym  # noqa: F401
     from acc_gym.evaluation.runner import load_controller
-    from acc_gym.scenarios.registry import scenario_type
 
+    if families is not None:
+        known = list(dict.fromkeys(case[0] for case in grid()))
+        families = (families,) if isinstance(families, str) else tuple(families)
+        unknown = [f for f in families if f not in known]
+        if unknown or not families:
+            raise ValueError(f"r157_cases: families must name some of {known}, got {list(families)!r}")
     policy = load_controller(controller)
     cc = load_controller(reference)
     env = gym.make(ENV_ID)
     cases, errors = [], []
-    for k, (family, params, sid, sparams) in enumerate(grid()):
-        stype = scenario_type(sid)
-        sc = stype.build(stype.sample_params(np.random.default_rng([k, 157]), sparams), k, "typical")
-        try:
-            mine = collides(env, policy, sc)
-        except Exception as exc:  # noqa: BLE001  (a failing controller is a result)
-            text = str(exc).splitlines()[0] if str(exc) else ""
-            errors.append({"family": family, "params": params, "reason": f"{type(exc).__name__}: {text}"})
-            continue
-        ref = collides(env, cc, sc)
-        cases.append({"family": family, "params": params, "controller_collides": mine, "cc_driver_collides": ref,
-                      "preventable": (not ref) if mine else None})
-    env.close()
+    try:
+        for k, (family, params, sid, sparams) in enumerate(grid()):  # k: the case's seed, whatever is selected
+            if families is not None and family not in families:
+                continue
+            sc = _build_case(k, sid, sparams)
+            try:
+                mine = collides(env, policy, sc)
+            except Exception as exc:  # noqa: BLE001  (a failing controller is a result)
+                text = str(exc).splitlines()[0] if str(exc) else ""
+                errors.append({"family": family, "params": params, "reason": f"{type(exc).__name__}: {text}"})
+                continue
+            ref = collides(env, cc, sc)
+            cases.append({"family": family, "params": params, "controller_collides": mine,
+                          "cc_driver_collides": ref, "preventable": (not ref) if mine else None})
+    finally:
+        env.close()
     return {"reference": reference, "cases": cases,
             "preventable_collisions": sum(c["preventable"] is True for c in cases),
             "non_preventable_collisions": sum(c["preventable"] is False for c in cases), "errors": errors}
@@ -144,30 +266,35 @@ def r157_cases(controller, reference: str = REFERENCE) -> dict:
 
 def plot_map(result: dict, path=None):
     """The preventability map: each grid case as a marker -- where the C&C driver avoids (circle)
-    or collides (cross), filled red where the controller collides -- one panel per family."""
+    or collides (cross), filled red where the controller collides -- one panel per family (the
+    ego speeds of a cell side by side, slowest left)."""
     from matplotlib.figure import Figure
 
     from acc_gym.plotting import save_figure
 
-    fig = Figure(figsize=(11.0, 4.2), layout="constrained")
-    axes = fig.subplots(1, 2)
-    panels = (("lead deceleration", "lead_decel", "time_headway", "lead deceleration [m/s$^2$]", "headway [s]"),
-              ("cut-in", "gap", "other_speed", "gap at the start [m]", "other's speed [m/s]"))
-    for ax, (family, xk, yk, xl, yl) in zip(axes, panels):
+    fig = Figure(figsize=(15.0, 4.2), layout="constrained")
+    axes = fig.subplots(1, 3)
+    # family, x (from the params), y key, x label, y label, spread of the ego speeds along x, log x
+    panels = (("lead deceleration", lambda p: p["lead_decel"], "time_headway", "lead deceleration [m/s$^2$]",
+               "headway [s]", 0.15, False),
+              ("cut-in", lambda p: p["gap"], "other_speed", "gap at the start [m]", "other's speed [m/s]", 0.25, True),
+              ("cut-out", lambda p: p["gap"] / p["ego_speed"], "other_speed",
+               "gap at the reveal / ego speed [s]", "revealed vehicle's speed [m/s]", 0.12, False))
+    for ax, (family, xf, yk, xl, yl, spread, log) in zip(axes, panels):
         rows = [c for c in result["cases"] if c["family"] == family]
         speeds = sorted({c["params"]["ego_speed"] for c in rows})
         for c in rows:
             p = c["params"]
-            dx = (speeds.index(p["ego_speed"]) - (len(speeds) - 1) / 2) * (0.25 if family == "cut-in" else 0.15)
-            x = p[xk] * (1 + dx * 0.3) if family == "cut-in" else p[xk] + dx
+            dx = (speeds.index(p["ego_speed"]) - (len(speeds) - 1) / 2) * spread
+            x = xf(p) * (1 + dx * 0.3) if log else xf(p) + dx
             marker = "x" if c["cc_driver_collides"] else "o"
             colour = "tab:red" if c["controller_collides"] else "tab:green"
             ax.scatter(x, p[yk], marker=marker, color=colour, s=60)
         ax.set_xlabel(xl)
         ax.set_ylabel(yl)
-        ax.set_title(f"{family}: o / x the C&C driver avoids / collides; red: the controller collides", fontsize=9)
+        ax.set_title(f"{family}: o / x the C&C driver avoids / collides; red: the controller collides", fontsize=8)
         ax.grid(True, alpha=0.3)
-        if family == "cut-in":
+        if log:
             ax.set_xscale("log")
     if path is not None:
         save_figure(fig, path)

@@ -2,7 +2,7 @@
 test split, for tuning a controller on one and ranking it on the other.
 
     from acc_gym.suites import get_suite, list_suites
-    list_suites()                        # ['carfollowing-v1', 'malicious-v3', 'ncap-v1', 'singlelane-v3']
+    list_suites()                        # ['carfollowing-v1', 'malicious-v3', 'ncap-v1', 'ncap-v2', 'singlelane-v3']
     s = get_suite("singlelane-v3")
     s.episodes("dev")                    # the fixed list (about one hour of paper 004's traffic)
     s.scenario(1234, "test")             # the unbounded stream, a pure function of (index, split)
@@ -17,6 +17,9 @@ singlelane-v3      paper 004's 22 configurations by occurrence      ~1 simulated
                    rate, typical human-like MPC drivers              (~275 scenarios)
 ncap-v1            the 24 CCRs / CCRm / CCRb tests with test-track  48 (each test twice)  NCAP-v0
                    deviations of speed and distance
+ncap-v2            Euro NCAP 2026's car-to-car points (ACC         57 (each point once)  SingleLane-v0
+                   performance and frontal collisions, up to
+                   130 km/h; cut-in, cut-out, 1 s / 4 m/s^2 CCRb)
 malicious-v3       malicious MPC drivers in cut-in and braking      36 (4 per config.)    SingleLane-v0
                    configurations, plus the hard CCRb tests
 =================  ==============================================  ====================  ==================
@@ -83,6 +86,7 @@ PINNED = {
     "carfollowing-v1": "96e543fba1374302c1df0b3826134bcd504e7de67cc55bf5e0691058f750164c",
     "malicious-v3": "bc432ec9ec1c1c13874b340a5611d3cc9de3ab0812bcd0c3ae6d699172ce6cda",
     "ncap-v1": "4c807fa8938850c3a408e05b6d2086de63d1fbeb262c1271af48867ec8346d89",
+    "ncap-v2": "4d91ec702f856b94fcabb893dc34d93ba152dce7fa04d2701099ad0faa2bc0ce",
     "singlelane-v3": "32cfc23340c76fbca1f5b5a4abba66ee80fc7534c074b93f8f7f2ca48cae1009",
 }
 # Retired suites: name -> (the release that retired it, its successor, why)
@@ -106,6 +110,9 @@ def _templates() -> dict[str, Suite]:
         Suite("ncap-v1", 1, "ncap", "acc_gym/NCAP-v0", generators.ncap, count=48,
               description="the Euro NCAP-style CCRs / CCRm / CCRb catalogue, each test twice with test-track "
                           "deviations"),
+        Suite("ncap-v2", 2, "ncap", "acc_gym/SingleLane-v0", generators.ncap2026, count=57,
+              description="Euro NCAP 2026's car-to-car points: ACC performance (CCRs, CCRm, CCRb, cut-in, cut-out) "
+                          "and the frontal-collision CCRs / CCRm / CCRb, with test-track deviations"),
         Suite("singlelane-v3", 3, "singlelane", "acc_gym/SingleLane-v0", generators.singlelane, hours=1.0,
               description="one hour of paper 004's single-lane traffic, configurations by occurrence rate"),
     )}

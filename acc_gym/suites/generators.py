@@ -23,6 +23,14 @@ speed profiles in :func:`acc_gym.scenarios.build`) is drawn from ``rng``.
   4 s time-to-collision from the actual speeds. Durations keep their nominal values
   (they leave seconds of margin). The catalogue id is kept; the deviations are in
   ``params``. So dev and test hold the same tests, run slightly differently.
+* ``ncap-v2``: Euro NCAP 2026's car-to-car points (:mod:`acc_gym.scenarios.ncap2026`: the
+  ACC-performance matrices and the frontal-collision CCRs / CCRm / CCRb, 57 ids) in turn
+  (``index % 57``), with the same kind of test-track deviations: ego speed ``+U(0, 1)``
+  km/h, a moving target's ``+U(-1, 1)`` km/h (an approach then starts again at its nominal
+  distance: 210 m for the ACC approaches, a 4 s time-to-collision for the frontal ones),
+  CCRb's gap ``+U(-0.5, 0.5)`` m and deceleration ``+U(-0.25, 0.25)`` m/s^2, a cut-in's or
+  cut-out's TTC ``+U(-0.1, 0.1)`` s. Left out: the cut-in at 50 / 10 km/h with a TTC of
+  0 s, which no controller can avoid (:mod:`acc_gym.standards.ncap`).
 * ``malicious-v3``: surrounding MPC drivers at the limits (``drivers="malicious"``: short
   time gaps, late hard braking, high jerk) in the single-lane configurations where a
   vehicle enters the ego's path or the vehicle ahead must brake -- cut-ins (SV-POV, and
@@ -107,3 +115,35 @@ def malicious(index: int, rng: np.random.Generator) -> Scenario:
     if sid.startswith("ncap/"):
         return _ncap(sid, rng)
     return build(sid, seed=_seed(rng), drivers="malicious")
+
+
+def ncap2026_ids() -> list[str]:
+    """``ncap-v2``'s ids: every ``ncap2026`` id but the unavoidable TTC-0 cut-in."""
+    return [i for i in list_scenarios("ncap2026") if i != "ncap2026/acc/cut-in/50-10"]
+
+
+def ncap2026_params(scenario_id: str, rng: np.random.Generator) -> dict:
+    """The 2026 test point's parameters with test-track deviations (see the module docstring)."""
+    from acc_gym.scenarios.ncap2026 import ACC_START_GAP, FC_TTC0
+
+    p = dict(build(scenario_id, seed=0).params)  # every parameter is a constant law
+    kind = scenario_id.split("/")[2]
+    p["v_ego"] += float(rng.uniform(0.0, 1.0))
+    if p["v_target"] > 0:
+        p["v_target"] += float(rng.uniform(-1.0, 1.0))
+    if kind == "ccrb":
+        p["gap"] += float(rng.uniform(-0.5, 0.5))
+        p["decel"] += float(rng.uniform(-0.25, 0.25))
+    elif kind in ("cut-in", "cut-out"):
+        p["ttc"] = max(p["ttc"] + float(rng.uniform(-0.1, 0.1)), 0.0)
+    elif "/fc/" in scenario_id:
+        p["gap"] = FC_TTC0 * (p["v_ego"] - p["v_target"]) / 3.6
+    else:
+        p["gap"] = ACC_START_GAP
+    return p
+
+
+def ncap2026(index: int, rng: np.random.Generator) -> Scenario:
+    ids = ncap2026_ids()
+    sid = ids[index % len(ids)]
+    return build(sid, ncap2026_params(sid, rng), seed=_seed(rng), drivers="typical")

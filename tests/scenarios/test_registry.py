@@ -30,10 +30,10 @@ def test_paper_single_lane_configurations():
 
 
 def test_families_and_listing():
-    assert families() == ["carfollowing", "ncap", "singlelane", "stopandgo"]
+    assert families() == ["carfollowing", "ncap", "ncap2026", "singlelane", "stopandgo"]
     by_family = {f: list_scenarios(f) for f in families()}
     assert sorted(sum(by_family.values(), [])) == sorted(ALL)  # a partition
-    assert len(ALL) == len(set(ALL)) == 23 + 3 + 1 + 24 + 1  # carfollowing/varied (issue 33)
+    assert len(ALL) == len(set(ALL)) == 23 + 3 + 1 + 24 + 1 + 58  # carfollowing/varied (issue 33), ncap2026 (36)
     for f, ids in by_family.items():
         assert all(scenario_type(i).family == f for i in ids)
     assert by_family["stopandgo"] == ["stopandgo"]
@@ -102,15 +102,16 @@ def test_each_id_has_its_own_generator():
     assert len(set(speeds)) == len(ids)
 
 
-@pytest.mark.parametrize("sid", [i for i in ALL if not i.startswith("ncap/")])
+@pytest.mark.parametrize("sid", [i for i in ALL if not i.startswith(("ncap/", "ncap2026/"))])
 def test_different_seeds_differ(sid):
     s0, s1 = build(sid, seed=0, drivers="idm"), build(sid, seed=1, drivers="idm")
     assert s0.params != s1.params or s0.vehicles != s1.vehicles
 
 
-def test_ncap_is_deterministic_across_seeds():
+@pytest.mark.parametrize("sid", ["ncap/ccrm/50", "ncap2026/acc/cut-out/70-50", "ncap2026/fc/ccrb/60"])
+def test_ncap_is_deterministic_across_seeds(sid):
     # all NCAP parameters are constants: the seed changes nothing but the record of it
-    s0, s1 = build("ncap/ccrm/50", seed=0), build("ncap/ccrm/50", seed=1)
+    s0, s1 = build(sid, seed=0), build(sid, seed=1)
     assert s0.vehicles == s1.vehicles and s0.params == s1.params and s0.seed != s1.seed
 
 

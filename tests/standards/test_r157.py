@@ -29,7 +29,9 @@ def test_case_parameters_are_the_documented_ones():
         fams.setdefault(family, []).append(params)
     assert set(fams["lead deceleration"][0]) == {"ego_speed", "lead_decel", "time_headway"}
     assert set(fams["cut-in"][0]) == {"ego_speed", "other_speed", "gap", "lateral_speed"}
-    assert len(fams["lead deceleration"]) == 18 and len(fams["cut-in"]) == 16
+    assert set(fams["cut-out"][0]) == {"ego_speed", "other_speed", "gap", "time_headway"}
+    assert len(fams["lead deceleration"]) == 18 and len(fams["cut-in"]) == 16 and len(fams["cut-out"]) == 18
+    assert list(fams) == ["lead deceleration", "cut-in", "cut-out"]  # in this order
 
 
 def test_conformance_json_carries_the_r157_cases(capsys):
@@ -43,6 +45,9 @@ def test_conformance_json_carries_the_r157_cases(capsys):
     assert set(d["standards"]) == {"r157"} and r["preventable_collisions"] > 0
     for c in r["cases"]:
         assert {"family", "params", "controller_collides", "cc_driver_collides", "preventable"} <= set(c)
+    cut_outs = [c for c in r["cases"] if c["family"] == "cut-out"]
+    assert len(cut_outs) == 18
+    assert all(set(c["params"]) == {"ego_speed", "other_speed", "gap", "time_headway"} for c in cut_outs)
     with pytest.raises(SystemExit):
         main(["conformance", "constant", "--standard", "r158"])
 

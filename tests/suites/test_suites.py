@@ -20,9 +20,9 @@ from acc_gym.suites import (
 from acc_gym.suites.generators import MALICIOUS_NCAP, MALICIOUS_SINGLELANE
 from acc_gym.suites.suite import canonical_scenario, definition_hash
 
-NAMES = ["carfollowing-v1", "malicious-v3", "ncap-v1", "singlelane-v3"]
+NAMES = ["carfollowing-v1", "malicious-v3", "ncap-v1", "ncap-v2", "singlelane-v3"]
 ENV_IDS = {"carfollowing-v1": "acc_gym/CarFollowing-v0", "malicious-v3": "acc_gym/SingleLane-v0",
-           "ncap-v1": "acc_gym/NCAP-v0", "singlelane-v3": "acc_gym/SingleLane-v0"}
+           "ncap-v1": "acc_gym/NCAP-v0", "ncap-v2": "acc_gym/SingleLane-v0", "singlelane-v3": "acc_gym/SingleLane-v0"}
 
 
 def test_list_and_attributes():
