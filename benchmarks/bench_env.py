@@ -35,6 +35,16 @@ IDM followers, an ego whose speed is set and read every step, 0.2 s steps, one r
 ``sumo_steps_per_s``, and ``sumo_ratio`` = ``env_idm_steps_per_s / sumo_steps_per_s``
 (above 1: acc_gym is faster). It needs ``pip install ".[bench]"`` (libsumo).
 
+``--peers`` also times the core column API against ``cavsandbox`` (a pure-Python peer,
+``pip install cavsandbox``, imported as ``cacc_sim``) on the same work: a lead on a speed
+profile (25 m/s, down to 15 m/s and back at 1 m/s^2) and 10 IDM followers (a 1.5 m/s^2,
+b 2.0 m/s^2, T 1.5 s, s0 2 m, desired speed 25 m/s, no reaction delay, 4.7 m long, 50 m
+apart), 3,000 steps of 0.1 s with every step recorded, objects built in the timed run on
+both sides (:func:`column_rate`, :func:`cavsandbox_column_rate`). The two alternate in each
+repeat; ``column_vehicle_steps_per_s`` and ``cavsandbox_column_vehicle_steps_per_s`` are
+vehicles x steps per second, and ``column_ratio_cavsandbox`` = ours / theirs. Without
+cavsandbox the ratio is ``null`` and ``column_ratio_cavsandbox_reason`` says why.
+
 ``--against DIR`` times another checkout of the package (e.g. the previous release:
 ``git worktree add /tmp/prev v0.5.0``) in the same run: each repeat runs this script once
 for this checkout and once for ``DIR`` (``PYTHONPATH=DIR``), alternating, in subprocesses,
@@ -134,6 +144,85 @@ def vector_policy_rate(num_envs: int, steps: int, seed: int, workers: int = 1) -
     return rate
 
 
+# The column case (--peers): one lead and COLUMN_FOLLOWERS IDM followers, the same on both sides.
+COLUMN_FOLLOWERS = 10
+COLUMN_STEPS = 3000
+COLUMN_DT = 0.1  # [s]
+COLUMN_SPEED = 25.0  # [m/s] every vehicle's initial speed, the lead's cruise and the IDM desired speed
+COLUMN_SPACING = 50.0  # [m] initial front bumper to front bumper
+COLUMN_LENGTH = 4.7  # [m]
+# the lead's profile from COLUMN_SPEED: (acceleration [m/s^2], duration [s]), 300 s in all
+COLUMN_LEAD = ((0.0, 100.0), (-1.0, 10.0), (0.0, 90.0), (1.0, 10.0), (0.0, 90.0))
+# IDM: a [m/s^2], b [m/s^2], T [s], s0 [m], delta [-] (v0 is COLUMN_SPEED)
+COLUMN_IDM = {"a": 1.5, "b": 2.0, "time_gap": 1.5, "s0": 2.0, "delta": 4.0}
+
+
+def _column_start() -> tuple[np.ndarray, np.ndarray]:
+    """Front-bumper positions [m] (lead first) and speeds [m/s] of the column case."""
+    n = COLUMN_FOLLOWERS + 1
+    return (n - 1 - np.arange(n)) * COLUMN_SPACING, np.full(n, COLUMN_SPEED)
+
+
+def column_rate() -> float:
+    """Vehicle-steps per second of :func:`~acc_gym.simulation.rollout.simulate_column` on the
+    column case (the README's first API), the IDM drivers built in the timed run."""
+    from acc_gym.drivers.baselines import IDM, IDMParams
+    from acc_gym.simulation.profiles import SpeedProfile
+    from acc_gym.simulation.rollout import simulate_column
+    from acc_gym.vehicle import VehicleParams
+
+    x0, v0 = _column_start()
+    t0 = time.perf_counter()
+    lead = SpeedProfile.from_segments(COLUMN_SPEED, COLUMN_LEAD)
+    params = IDMParams(v_desired=COLUMN_SPEED, **COLUMN_IDM)
+    followers = [IDM(params, dt=COLUMN_DT) for _ in range(COLUMN_FOLLOWERS)]
+    tr = simulate_column(lead, followers, x0, v0, duration=COLUMN_STEPS * COLUMN_DT, dt=COLUMN_DT,
+                         vehicle=VehicleParams(length=COLUMN_LENGTH))
+    elapsed = time.perf_counter() - t0
+    assert tr.x.shape == (COLUMN_STEPS + 1, COLUMN_FOLLOWERS + 1) and not tr.collided.any()
+    return (COLUMN_FOLLOWERS + 1) * COLUMN_STEPS / elapsed
+
+
+def cavsandbox_available() -> str | None:
+    """None if cavsandbox (``cacc_sim``) imports, else the reason it does not."""
+    try:
+        import cacc_sim  # noqa: F401
+    except ImportError as exc:
+        return f"cavsandbox is not installed (pip install cavsandbox): {exc}"
+    return None
+
+
+def cavsandbox_column_rate() -> float:
+    """Vehicle-steps per second of cavsandbox's headless loop (``SimulationLoop.run``) on the
+    column case: its ``LeadVehicleModel`` on the same profile (its ramps run from the previous
+    event's value to the event's, hence the event list), ``IDMModel`` followers with the same
+    parameters, passthrough sensors, the kinematic response (no actuator lag, as acc_gym's
+    vehicle), every step logged (``log_rate_hz = 1 / dt``), the objects built in the timed run."""
+    import pandas as pd
+    from cacc_sim import (IDMModel, LeadVehicleModel, LeadVehicleProfile, PassthroughFilter, SimConfig,
+                          SimulationLoop, Vehicle, VehiclePlant, VehicleResponseModel)
+
+    x0, v0 = _column_start()
+    low = COLUMN_SPEED + COLUMN_LEAD[1][0] * COLUMN_LEAD[1][1]  # [m/s] 15
+    events = pd.DataFrame({"time_s": [0.0, 100.0, 110.0, 200.0, 210.0],
+                           "value": [COLUMN_SPEED, low, low, COLUMN_SPEED, COLUMN_SPEED], "transition": "ramp"})
+    t0 = time.perf_counter()
+    config = SimConfig(timestep_s=COLUMN_DT, duration_s=COLUMN_STEPS * COLUMN_DT, road_length_m=1e6,
+                       response_model="kinematic", log_rate_hz=1.0 / COLUMN_DT)
+    vehicles = []
+    for i in range(COLUMN_FOLLOWERS + 1):
+        model = (LeadVehicleModel(LeadVehicleProfile(events)) if i == 0 else
+                 IDMModel(COLUMN_SPEED, COLUMN_IDM["time_gap"], s0=COLUMN_IDM["s0"], a_max=COLUMN_IDM["a"],
+                          b=COLUMN_IDM["b"], delta=COLUMN_IDM["delta"], a_min=-8.0))
+        vehicles.append(Vehicle(i, model, VehicleResponseModel(mode="kinematic", dt=COLUMN_DT),
+                                VehiclePlant(float(x0[i]), float(v0[i]), COLUMN_LENGTH, dt=COLUMN_DT),
+                                PassthroughFilter(), leader_id=None if i == 0 else i - 1))
+    log = SimulationLoop(vehicles, config).run()
+    elapsed = time.perf_counter() - t0
+    assert len(log) == (COLUMN_FOLLOWERS + 1) * COLUMN_STEPS  # every step of every vehicle, no collision
+    return (COLUMN_FOLLOWERS + 1) * COLUMN_STEPS / elapsed
+
+
 def _median(out: dict, key: str, runs: list) -> None:
     out[key] = float(np.median(runs))
     out[key + "_runs"] = [round(x) for x in runs]
@@ -176,7 +265,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--policy", action="store_true",
                         help="also time the vector env (in-process and with --workers) with a PPO policy in the loop")
     parser.add_argument("--peers", action="store_true",
-                        help="also time SUMO (libsumo) on the env_idm work, alternating, and report sumo_ratio")
+                        help="also time SUMO (libsumo) on the env_idm work and cavsandbox on the column case, "
+                             "alternating, and report sumo_ratio and column_ratio_cavsandbox")
     parser.add_argument("--against", default=None, metavar="DIR",
                         help="also time the checkout in DIR (PYTHONPATH=DIR), alternating, and report the ratios")
     parser.add_argument("--json", action="store_true")
@@ -199,6 +289,10 @@ def main(argv=None) -> dict:
         if "env_idm" not in args.cases:
             args.cases.append("env_idm")
         sumo_peer.rate(400)  # warm-up
+        column_rate()  # warm-up: the column kernels compiled or loaded from numba's cache
+        cavsandbox_missing = cavsandbox_available()
+        if cavsandbox_missing is None:
+            cavsandbox_column_rate()  # warm-up
     for case in args.cases:  # warm-up: compile and cache, up to an episode's end (its score's kernels too)
         env_id, settings = CASES[case]
         warm_up_episode(env_id, **settings)
@@ -213,11 +307,21 @@ def main(argv=None) -> dict:
                 vector_env_rate(args.num_envs, args.vector_steps, r, env_id=env_id, **settings))
             if args.peers and case == "env_idm":
                 runs.setdefault("sumo_steps_per_s", []).append(sumo_peer.rate(args.steps))
+        if args.peers:  # the column case, then cavsandbox on the same work
+            runs.setdefault("column_vehicle_steps_per_s", []).append(column_rate())
+            if cavsandbox_missing is None:
+                runs.setdefault("cavsandbox_column_vehicle_steps_per_s", []).append(cavsandbox_column_rate())
     out = {"num_envs": args.num_envs, "cases": {c: {"id": CASES[c][0], **CASES[c][1]} for c in args.cases}}
     for key, values in runs.items():
         _median(out, key, values)
     if args.peers:
         out["sumo_ratio"] = out["env_idm_steps_per_s"] / out["sumo_steps_per_s"]
+        out["column_ratio_cavsandbox"] = None
+        if cavsandbox_missing is None:
+            out["column_ratio_cavsandbox"] = (out["column_vehicle_steps_per_s"]
+                                              / out["cavsandbox_column_vehicle_steps_per_s"])
+        else:
+            out["column_ratio_cavsandbox_reason"] = cavsandbox_missing
     if "env" in args.cases:
         out["vector_over_single"] = out["vector_env_steps_per_s"] / out["env_steps_per_s"]
     if args.workers > 1:
@@ -243,6 +347,10 @@ def main(argv=None) -> dict:
                 print(f"{key:42s} {value:>12,.0f} steps/s  (runs {out[key + '_runs']})")
         if "sumo_ratio" in out:
             print(f"acc_gym (IDM drivers) / SUMO (libsumo): {out['sumo_ratio']:.2f}x")
+        if "column_ratio_cavsandbox" in out:
+            ratio = out["column_ratio_cavsandbox"]
+            print(f"simulate_column (lead + {COLUMN_FOLLOWERS} IDM) / cavsandbox, vehicle-steps/s: "
+                  + (f"{ratio:.1f}x" if ratio is not None else f"n/a ({out['column_ratio_cavsandbox_reason']})"))
         if "vector_over_single" in out:
             print(f"vector / single (SingleLane-v0 default): {out['vector_over_single']:.1f}x")
     return out

@@ -123,3 +123,39 @@ def test_bench_risk_json_keys():
     assert all(c["acceleration"] == 1.0 for c in out["cases"] if c["method"] == "crude")
     assert all(0.0 <= c["ci_low"] <= c["p"] <= c["ci_high"] <= 1.0 for c in out["cases"])
     assert 0.0 <= out["coverage"]["coverage"] <= 1.0 and out["coverage"]["runs"] == 2
+
+
+def test_bench_env_column_case_and_its_cavsandbox_peer_do_the_same_work():
+    """The column case (simulate_column, a lead and 10 IDM followers, 3,000 steps of 0.1 s) runs
+    to its end without a collision on both sides; cavsandbox's side only where it is installed."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import bench_env
+
+    assert bench_env.column_rate() > 0
+    if bench_env.cavsandbox_available() is not None:
+        pytest.skip("cavsandbox is not installed (pip install cavsandbox): no column peer to run")
+    assert bench_env.cavsandbox_column_rate() > 0  # its log holds every step of every vehicle (asserted inside)
+
+
+def test_bench_env_peers_reports_the_column_ratio_or_why_not():
+    """--peers adds column_vehicle_steps_per_s and column_ratio_cavsandbox; without cavsandbox
+    (here made unimportable) the ratio is null with the reason, and the script still runs."""
+    pytest.importorskip("libsumo", reason="libsumo is not installed (pip install '.[bench]' or '.[test]'): --peers needs it")
+    argv = ["bench_env.py", "--json", "--repeats", "1", "--steps", "200", "--vector-steps", "3", "--num-envs", "4",
+            "--workers", "1", "--cases", "env_idm", "--peers"]
+    code = ("import runpy, sys; sys.modules['cacc_sim'] = None; sys.argv = %r; "
+            "runpy.run_path('benchmarks/bench_env.py', run_name='__main__')" % argv)
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert out["column_vehicle_steps_per_s"] > 0 and len(out["column_vehicle_steps_per_s_runs"]) == 1
+    assert out["column_ratio_cavsandbox"] is None and "cavsandbox is not installed" in out["column_ratio_cavsandbox_reason"]
+    assert "cavsandbox_column_vehicle_steps_per_s" not in out
+    try:
+        import cacc_sim  # noqa: F401
+    except ImportError:
+        return
+    r = subprocess.run([sys.executable, *argv], capture_output=True, text=True, check=True, cwd=ROOT / "benchmarks")
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert out["cavsandbox_column_vehicle_steps_per_s"] > 0
+    assert out["column_ratio_cavsandbox"] == pytest.approx(out["column_vehicle_steps_per_s"]
+                                                          / out["cavsandbox_column_vehicle_steps_per_s"])

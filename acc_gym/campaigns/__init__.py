@@ -41,6 +41,10 @@ Decisions (details in each module's docstring):
 * **Dependencies**: pyarrow is an extra (``campaign``), not core: the simulator, the
   environments and training do not need it; the ``test`` and ``all`` extras include it
   and Dask. ``acc-gym campaign`` says what to install when either is missing.
+* **UN R157**: each collision's row says whether it was ``preventable`` (``cc-driver``, the
+  careful and competent driver, avoids the same scenario with the same seed; re-driven in
+  the worker, collided episodes only) and the summary counts ``preventable_collisions`` and
+  ``non_preventable_collisions``; the column made the campaign format ``acc_gym.campaign/2``.
 * **Statistics**: deterministic intervals (exact Poisson, Wilson, Student t, a
   cluster-robust pooled share), so a summary is a pure function of the rows.
 """

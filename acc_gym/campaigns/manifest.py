@@ -28,7 +28,13 @@ it existed, with the ``.sha256`` files) is upgraded the same way on the next run
 **Older versions.** Campaigns written by acc-gym before it pinned the controller's code
 (whose chunks have no checksums), or before the fingerprint left ``hours`` out, cannot be
 checked by this version: they are refused with a message that says so and what to do
-(start again in a new directory; the older acc-gym can still summarise them).
+(start again in a new directory; the older acc-gym can still summarise them). The same holds
+for format ``acc_gym.campaign/1`` (:data:`OLDER_FORMATS`): its chunk files lack the
+``preventable`` column format ``/2`` added (:mod:`acc_gym.campaigns.episodes`). Decided: the
+format is bumped rather than the column made optional, since the chunk schema is checked
+exactly and a ``/1`` chunk holds no verdict to give; the format is pinned in the
+fingerprint, so ``/1`` chunk files are refused as another campaign's even without their
+manifest.
 """
 
 from __future__ import annotations
@@ -41,7 +47,9 @@ from dataclasses import asdict, dataclass
 
 from acc_gym.campaigns.errors import CampaignError
 
-FORMAT = "acc_gym.campaign/1"
+FORMAT = "acc_gym.campaign/2"  # /2: chunk files carry the UN R157 ``preventable`` column
+OLDER_FORMATS = {"acc_gym.campaign/1": "have no UN R157 'preventable' column in their chunk files (format "
+                                       "acc_gym.campaign/1; this version writes acc_gym.campaign/2)"}
 PINNED = ("format", "suite", "suite_version", "suite_hash", "env_id", "split", "root_seed", "controller",
           "controller_code", "hours", "chunk_size", "acc_gym_version")
 CHECKSUMS = "chunk_sha256"  # manifest key: chunk file name -> its sha256 (hex)
@@ -139,6 +147,8 @@ def check_manifest(manifest: dict, path) -> Settings:
     """The settings a manifest read from ``path`` holds, after checking its shape."""
     if not isinstance(manifest, dict):
         raise CampaignError(f"{path} is not a campaign manifest (not a JSON object)")
+    if manifest.get("format") in OLDER_FORMATS:
+        raise _older_version(path, manifest, OLDER_FORMATS[manifest["format"]])
     if manifest.get("format") != FORMAT:
         raise CampaignError(f"{path} is not a campaign manifest of format {FORMAT!r} "
                             f"(format {manifest.get('format')!r})")

@@ -5,6 +5,12 @@ Over the episodes done so far (``complete`` says whether that is all of them):
 * ``collisions``: episodes that ended in a collision -- their count, and the rate per hour
   of traffic (exposure: the scenarios' durations, the traffic they stand for) with an
   exact Poisson interval;
+* ``preventable_collisions`` / ``non_preventable_collisions``: UN R157's split of those
+  collisions (:mod:`acc_gym.standards.r157`): the careful and competent driver (``cc-driver``)
+  avoids the same scenario / collides too (the rows' ``preventable`` column). Decided: plain
+  counts, as ``acc-gym evaluate`` and the leaderboard report them; they add up to
+  ``collisions.count``. Added keys of summary format ``/1`` (nothing there changed meaning,
+  so the format stays; a summary written before has neither key);
 * ``share_comfortable`` / ``share_safe_spacing``: share of *time* with comfortable
   acceleration / with safe spacing (Q >= 0), pooled over episodes weighted by their
   simulated time, with a cluster-robust t interval. For safe spacing only episodes that
@@ -72,12 +78,15 @@ def summarise_table(table, confidence: float = 0.95) -> dict:
     jerk = _column(table, "max_jerk")
     hours = float(duration.sum()) / HOUR
     k = int(collision.sum())
+    verdicts = table.column("preventable").to_pylist()
     rate = stats.poisson_rate_ci(k, hours, confidence) if n else (math.nan,) * 3
     return {
         "episodes": n,
         "traffic_hours": hours,
         "simulated_hours": float(simulated.sum()) / HOUR,
         "collisions": {"count": k, "per_hour": _estimate(rate, n)},
+        "preventable_collisions": sum(v is True for v in verdicts),
+        "non_preventable_collisions": sum(v is False for v in verdicts),
         "share_comfortable": _estimate(stats.weighted_share_ci(_column(table, "share_comfortable"), simulated,
                                                                confidence), n),
         "share_safe_spacing": _estimate(stats.weighted_share_ci(safe, simulated, confidence),
@@ -147,6 +156,8 @@ def format_summary(s: dict) -> str:
     rows = [
         ("collisions", str(col["count"]), s["episodes"]),
         ("collisions per hour", _ci(col["per_hour"], ".2f"), col["per_hour"]["n"]),
+        ("  preventable (UN R157)", f"{s['preventable_collisions']} preventable, {s['non_preventable_collisions']} not",
+         col["count"]),
         ("share comfortable", _ci(s["share_comfortable"], ".1%"), s["share_comfortable"]["n"]),
         ("share safe spacing", _ci(s["share_safe_spacing"], ".1%"), s["share_safe_spacing"]["n"]),
         ("speed overshoot (mean)", _ci(s["speed_overshoot"], ".3f"), s["speed_overshoot"]["n"]),

@@ -8,6 +8,11 @@ Each kernel writes, for the rows ``rows`` only, what the model's ``act`` gives: 
 the model has a reaction delay, as in the models' ``_law``. Parameters are float arrays of
 one value per row or one value for all rows (:func:`_at`).
 
+Each law is written once, as a function of one vehicle's numbers (``idm``, ``gipps``, ...);
+the ``*_rows`` kernels run it over a batch's rows (a model's ``act``), and :func:`law` picks
+it by the model's code (:data:`KINDS`) for a compiled loop that steps several models, the
+column simulation's (:mod:`acc_gym.simulation._column_kernel`).
+
 ``tests/drivers/test_baselines.py`` checks every kernel against its array function to 1e-12
 (``np.power``/``np.exp`` and the compiled ``pow``/``exp`` may differ in the last bit).
 """
@@ -42,102 +47,86 @@ def _free(v, v_desired, k_free, a_max):  # pragma: no cover - compiled
     return min(max(k_free * (v_desired - v), -a_max), a_max)
 
 
-@numba.njit(cache=True)
-def idm_rows(v, gap, v_seen, v_lead, a, b, time_gap, s0, v_desired, delta, rows, out):  # pragma: no cover
-    """IDM: ``idm_accel(v, gap, v_lead - v_seen, ...)``."""
-    for r in rows:
-        ar = _at(a, r)
-        vr = v[r]
-        free = 1.0 - (max(vr, 0.0) / _at(v_desired, r)) ** _at(delta, r)
-        g = gap[r]
-        inter = 0.0
-        if math.isfinite(g):
-            dv = v_lead[r] - v_seen[r]
-            s_star = _at(s0, r) + max(0.0, vr * _at(time_gap, r) - vr * dv / (2.0 * math.sqrt(ar * _at(b, r))))
-            q = s_star / max(g, 1e-3)
-            inter = q * q
-        out[r] = _finish(ar * (free - inter))
+# ---------------------------------------------------------------------------------------
+# One vehicle's law: own speed now ``v_now``; ``v``, ``gap``, ``v_lead``, ``a_lead`` as perceived
+# ---------------------------------------------------------------------------------------
+
+@numba.njit(cache=True, inline="always")
+def idm(v_now, gap, v, v_lead, a, b, time_gap, s0, v_desired, delta):  # pragma: no cover - compiled
+    """IDM: ``idm_accel(v_now, gap, v_lead - v, ...)``."""
+    free = 1.0 - (max(v_now, 0.0) / v_desired) ** delta
+    inter = 0.0
+    if math.isfinite(gap):
+        dv = v_lead - v
+        s_star = s0 + max(0.0, v_now * time_gap - v_now * dv / (2.0 * math.sqrt(a * b)))
+        q = s_star / max(gap, 1e-3)
+        inter = q * q
+    return _finish(a * (free - inter))
 
 
-@numba.njit(cache=True)
-def gipps_rows(v_now, v, gap, v_lead, a, b, b_hat, tau, theta, v_desired, s0, dt, rows, out):  # pragma: no cover
+@numba.njit(cache=True, inline="always")
+def gipps(v_now, v, gap, v_lead, a, b, b_hat, tau, theta, v_desired, s0, dt):  # pragma: no cover - compiled
     """Gipps: ``(gipps_speed(v, gap, v_lead, ...) - v_now) / dt``; ``theta`` NaN is ``None`` (tau / 2)."""
-    for r in rows:
-        vr, ar, br, taur = v[r], _at(a, r), _at(b, r), _at(tau, r)
-        th = _at(theta, r)
-        if math.isnan(th):
-            th = 0.5 * taur
-        ratio = vr / _at(v_desired, r)
-        free = vr + 2.5 * ar * taur * (1.0 - ratio) * math.sqrt(max(0.025 + ratio, 0.0))
-        h = 0.5 * taur + th
-        g = gap[r]
-        if math.isfinite(g):
-            vl = v_lead[r]
-            arg = br * br * h * h - br * (2.0 * (g - _at(s0, r)) - vr * taur - vl * vl / _at(b_hat, r))
-            safe = br * h + math.sqrt(max(arg, 0.0)) if arg >= 0.0 else 0.0
-            safe = max(safe, 0.0)
-        else:
-            safe = np.inf
-        out[r] = _finish((max(min(free, safe), 0.0) - v_now[r]) / dt)
+    if math.isnan(theta):
+        theta = 0.5 * tau
+    ratio = v / v_desired
+    free = v + 2.5 * a * tau * (1.0 - ratio) * math.sqrt(max(0.025 + ratio, 0.0))
+    h = 0.5 * tau + theta
+    if math.isfinite(gap):
+        arg = b * b * h * h - b * (2.0 * (gap - s0) - v * tau - v_lead * v_lead / b_hat)
+        safe = b * h + math.sqrt(max(arg, 0.0)) if arg >= 0.0 else 0.0
+        safe = max(safe, 0.0)
+    else:
+        safe = np.inf
+    return _finish((max(min(free, safe), 0.0) - v_now) / dt)
 
 
-@numba.njit(cache=True)
-def gm_rows(v_now, gap, v_seen, v_lead, c, m, l, v_desired, k_free, a_max, length_ahead, rows, out):  # pragma: no cover
-    """GM: ``gm_accel(v_now, gap + length_ahead, v_lead - v_seen, ...)`` with nothing ahead ``inf``,
+@numba.njit(cache=True, inline="always")
+def gm(v_now, gap, v, v_lead, c, m, l, v_desired, k_free, a_max, length_ahead):  # pragma: no cover - compiled
+    """GM: ``gm_accel(v_now, gap + length_ahead, v_lead - v, ...)`` with nothing ahead ``inf``,
     min the free-road law."""
-    for r in rows:
-        vn = v_now[r]
-        a = np.inf
-        if math.isfinite(gap[r]):
-            d = gap[r] + _at(length_ahead, r)
-            if math.isfinite(d):
-                a = _at(c, r) * max(vn, 0.0) ** _at(m, r) * (v_lead[r] - v_seen[r]) / max(d, 1e-3) ** _at(l, r)
-            else:
-                a = 0.0
-        out[r] = _finish(min(a, _free(vn, _at(v_desired, r), _at(k_free, r), _at(a_max, r))))
+    a = np.inf
+    if math.isfinite(gap):
+        d = gap + length_ahead
+        if math.isfinite(d):
+            a = c * max(v_now, 0.0) ** m * (v_lead - v) / max(d, 1e-3) ** l
+        else:
+            a = 0.0
+    return _finish(min(a, _free(v_now, v_desired, k_free, a_max)))
 
 
-@numba.njit(cache=True)
-def fuzzy_rows(v_now, v, gap, v_lead, a_lead, T, gamma, s0, h, level_width, max_level, step, v_desired, k_free, a_max,
-               rows, out):  # pragma: no cover
+@numba.njit(cache=True, inline="always")
+def fuzzy(v_now, v, gap, v_lead, a_lead, T, gamma, s0, h, level_width, max_level, step, v_desired, k_free,
+          a_max):  # pragma: no cover - compiled
     """Fuzzy: ``fuzzy_accel`` on the perceived scene (nothing ahead ``inf``), min the free-road law."""
-    for r in rows:
-        a = np.inf
-        g = gap[r]
-        if math.isfinite(g):
-            ml = _at(max_level, r)
-            level = min(max(np.rint((g - (_at(s0, r) + _at(h, r) * v[r])) / _at(level_width, r)), -ml), ml)
-            a = (v_lead[r] - v[r] + a_lead[r] * _at(T, r)) / _at(gamma, r) + _at(step, r) * level
-        out[r] = _finish(min(a, _free(v_now[r], _at(v_desired, r), _at(k_free, r), _at(a_max, r))))
+    a = np.inf
+    if math.isfinite(gap):
+        level = min(max(np.rint((gap - (s0 + h * v)) / level_width), -max_level), max_level)
+        a = (v_lead - v + a_lead * T) / gamma + step * level
+    return _finish(min(a, _free(v_now, v_desired, k_free, a_max)))
 
 
-@numba.njit(cache=True)
-def pipes_rows(v_now, v, gap, v_lead, c, v_desired, k_free, a_max, rows, out):  # pragma: no cover
+@numba.njit(cache=True, inline="always")
+def pipes(v_now, v, gap, v_lead, c, v_desired, k_free, a_max):  # pragma: no cover - compiled
     """Pipes: ``c (v_lead - v)`` on the perceived scene (nothing ahead ``inf``), min the free-road law."""
-    for r in rows:
-        a = _at(c, r) * (v_lead[r] - v[r]) if math.isfinite(gap[r]) else np.inf
-        out[r] = _finish(min(a, _free(v_now[r], _at(v_desired, r), _at(k_free, r), _at(a_max, r))))
+    a = c * (v_lead - v) if math.isfinite(gap) else np.inf
+    return _finish(min(a, _free(v_now, v_desired, k_free, a_max)))
 
 
-@numba.njit(cache=True)
-def newell_rows(v_now, gap, c, r_min, v_desired, dt, rows, out):  # pragma: no cover
+@numba.njit(cache=True, inline="always")
+def newell(v_now, gap, c, r_min, v_desired, dt):  # pragma: no cover - compiled
     """Newell: ``(newell_speed(gap, ...) - v_now) / dt``."""
-    for r in rows:
-        vd = _at(v_desired, r)
-        g = gap[r]
-        speed = max(vd * (1.0 - math.exp(-_at(c, r) * (g - _at(r_min, r)) / vd)), 0.0) if math.isfinite(g) else vd
-        out[r] = _finish((speed - v_now[r]) / dt)
+    speed = max(v_desired * (1.0 - math.exp(-c * (gap - r_min) / v_desired)), 0.0) if math.isfinite(gap) else v_desired
+    return _finish((speed - v_now) / dt)
 
 
-@numba.njit(cache=True)
-def tyler_rows(v_now, v, gap, v_lead, c_v, c_s, c_t, s0, v_desired, k_free, a_max, rows, out):  # pragma: no cover
+@numba.njit(cache=True, inline="always")
+def tyler(v_now, v, gap, v_lead, c_v, c_s, c_t, s0, v_desired, k_free, a_max):  # pragma: no cover - compiled
     """Tyler: ``tyler_accel`` on the perceived scene (nothing ahead ``inf``), min the free-road law."""
-    for r in rows:
-        a = np.inf
-        g = gap[r]
-        if math.isfinite(g):
-            a = _at(c_v, r) * (v_lead[r] - v[r]) + _at(c_s, r) * (g - _at(s0, r) - _at(c_t, r) * v[r])
-        out[r] = _finish(min(a, _free(v_now[r], _at(v_desired, r), _at(k_free, r), _at(a_max, r))))
+    a = np.inf
+    if math.isfinite(gap):
+        a = c_v * (v_lead - v) + c_s * (gap - s0 - c_t * v)
+    return _finish(min(a, _free(v_now, v_desired, k_free, a_max)))
 
 
 @numba.njit(cache=True, inline="always")
@@ -147,15 +136,119 @@ def _acc_law(v, gap, v_lead, a_lead, k1, k2, k3, time_gap, s0):  # pragma: no co
     return k3 * a_lead + k2 * (v_lead - v) + k1 * (gap - (s0 + time_gap * v))
 
 
+@numba.njit(cache=True, inline="always")
+def acc(v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2, two, k1, k2, k3, time_gap, s0, v_set, k_cruise, a_max,
+        vehicle_length):  # pragma: no cover - compiled
+    """ACC / CACC (``acc_accel``) on the current scene, with ``two`` the minimum over the second
+    vehicle ahead (Eq. 3: doubled ``s0`` and time gap plus one length), min the set-speed controller."""
+    a = _acc_law(v, gap, v_lead, a_lead, k1, k2, k3, time_gap, s0)
+    if two:
+        a = min(a, _acc_law(v, gap2, v_lead2, a_lead2, k1, k2, k3, 2.0 * time_gap, 2.0 * s0 + vehicle_length))
+    return _finish(min(a, _free(v, v_set, k_cruise, a_max)))
+
+
+# ---------------------------------------------------------------------------------------
+# A batch's rows (a model's act): parameters of one value per row or one for all (_at)
+# ---------------------------------------------------------------------------------------
+
+@numba.njit(cache=True)
+def idm_rows(v, gap, v_seen, v_lead, a, b, time_gap, s0, v_desired, delta, rows, out):  # pragma: no cover
+    """:func:`idm` over ``rows``."""
+    for r in rows:
+        out[r] = idm(v[r], gap[r], v_seen[r], v_lead[r], _at(a, r), _at(b, r), _at(time_gap, r), _at(s0, r),
+                     _at(v_desired, r), _at(delta, r))
+
+
+@numba.njit(cache=True)
+def gipps_rows(v_now, v, gap, v_lead, a, b, b_hat, tau, theta, v_desired, s0, dt, rows, out):  # pragma: no cover
+    """:func:`gipps` over ``rows``."""
+    for r in rows:
+        out[r] = gipps(v_now[r], v[r], gap[r], v_lead[r], _at(a, r), _at(b, r), _at(b_hat, r), _at(tau, r),
+                       _at(theta, r), _at(v_desired, r), _at(s0, r), dt)
+
+
+@numba.njit(cache=True)
+def gm_rows(v_now, gap, v_seen, v_lead, c, m, l, v_desired, k_free, a_max, length_ahead, rows, out):  # pragma: no cover
+    """:func:`gm` over ``rows``."""
+    for r in rows:
+        out[r] = gm(v_now[r], gap[r], v_seen[r], v_lead[r], _at(c, r), _at(m, r), _at(l, r), _at(v_desired, r),
+                    _at(k_free, r), _at(a_max, r), _at(length_ahead, r))
+
+
+@numba.njit(cache=True)
+def fuzzy_rows(v_now, v, gap, v_lead, a_lead, T, gamma, s0, h, level_width, max_level, step, v_desired, k_free, a_max,
+               rows, out):  # pragma: no cover
+    """:func:`fuzzy` over ``rows``."""
+    for r in rows:
+        out[r] = fuzzy(v_now[r], v[r], gap[r], v_lead[r], a_lead[r], _at(T, r), _at(gamma, r), _at(s0, r), _at(h, r),
+                       _at(level_width, r), _at(max_level, r), _at(step, r), _at(v_desired, r), _at(k_free, r),
+                       _at(a_max, r))
+
+
+@numba.njit(cache=True)
+def pipes_rows(v_now, v, gap, v_lead, c, v_desired, k_free, a_max, rows, out):  # pragma: no cover
+    """:func:`pipes` over ``rows``."""
+    for r in rows:
+        out[r] = pipes(v_now[r], v[r], gap[r], v_lead[r], _at(c, r), _at(v_desired, r), _at(k_free, r), _at(a_max, r))
+
+
+@numba.njit(cache=True)
+def newell_rows(v_now, gap, c, r_min, v_desired, dt, rows, out):  # pragma: no cover
+    """:func:`newell` over ``rows``."""
+    for r in rows:
+        out[r] = newell(v_now[r], gap[r], _at(c, r), _at(r_min, r), _at(v_desired, r), dt)
+
+
+@numba.njit(cache=True)
+def tyler_rows(v_now, v, gap, v_lead, c_v, c_s, c_t, s0, v_desired, k_free, a_max, rows, out):  # pragma: no cover
+    """:func:`tyler` over ``rows``."""
+    for r in rows:
+        out[r] = tyler(v_now[r], v[r], gap[r], v_lead[r], _at(c_v, r), _at(c_s, r), _at(c_t, r), _at(s0, r),
+                       _at(v_desired, r), _at(k_free, r), _at(a_max, r))
+
+
 @numba.njit(cache=True)
 def acc_rows(v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2, two, k1, k2, k3, time_gap, s0, v_set, k_cruise, a_max,
              vehicle_length, rows, out):  # pragma: no cover
-    """ACC / CACC (``acc_accel``), with ``two`` the minimum over the second vehicle ahead (Eq. 3:
-    doubled ``s0`` and time gap plus one length), min the set-speed controller."""
+    """:func:`acc` over ``rows`` (``two``: for every row)."""
     for r in rows:
-        k1r, k2r, k3r, hr, s0r = _at(k1, r), _at(k2, r), _at(k3, r), _at(time_gap, r), _at(s0, r)
-        a = _acc_law(v[r], gap[r], v_lead[r], a_lead[r], k1r, k2r, k3r, hr, s0r)
-        if two:
-            a = min(a, _acc_law(v[r], gap2[r], v_lead2[r], a_lead2[r], k1r, k2r, k3r, 2.0 * hr,
-                                2.0 * s0r + _at(vehicle_length, r)))
-        out[r] = _finish(min(a, _free(v[r], _at(v_set, r), _at(k_cruise, r), _at(a_max, r))))
+        out[r] = acc(v[r], gap[r], v_lead[r], a_lead[r], gap2[r], v_lead2[r], a_lead2[r], two, _at(k1, r), _at(k2, r),
+                     _at(k3, r), _at(time_gap, r), _at(s0, r), _at(v_set, r), _at(k_cruise, r), _at(a_max, r),
+                     _at(vehicle_length, r))
+
+
+# ---------------------------------------------------------------------------------------
+# Any model by its code, for a loop that steps several (the column simulation)
+# ---------------------------------------------------------------------------------------
+
+# the models' codes in law(): a model class's ``_kernel_kind`` (acc_gym.drivers.baselines)
+IDM, GIPPS, GM, FUZZY, PIPES, NEWELL, TYLER, ACC = range(8)
+KINDS = {"idm": IDM, "gipps": GIPPS, "gm": GM, "fuzzy": FUZZY, "pipes": PIPES, "newell": NEWELL, "tyler": TYLER,
+         "acc": ACC}
+MAX_PARAMS = 10  # the longest parameter list of a law (fuzzy's); law()'s p has this many rows
+
+
+@numba.njit(cache=True)
+def law(kind, p, dt, two, v_now, v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2):  # pragma: no cover - compiled
+    """The output of the model with code ``kind`` for one vehicle: ``p`` its parameters in the
+    order of the model's ``_kernel_fields`` (a float array of at least that many entries), ``dt``
+    [s] the model's step (Gipps, Newell), ``two`` whether ACC takes the second vehicle ahead
+    too. ``v``, ``gap``, ``v_lead``, ``a_lead`` are as perceived (the scene its reaction delay
+    ago; ACC has none), ``v_now`` the current own speed; ``gap2``, ``v_lead2``, ``a_lead2`` the
+    current second vehicle ahead (ACC only). The same numbers as the model's ``*_rows`` kernel."""
+    if kind == IDM:
+        return idm(v_now, gap, v, v_lead, p[0], p[1], p[2], p[3], p[4], p[5])
+    if kind == GIPPS:
+        return gipps(v_now, v, gap, v_lead, p[0], p[1], p[2], p[3], p[4], p[5], p[6], dt)
+    if kind == GM:
+        return gm(v_now, gap, v, v_lead, p[0], p[1], p[2], p[3], p[4], p[5], p[6])
+    if kind == FUZZY:
+        return fuzzy(v_now, v, gap, v_lead, a_lead, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9])
+    if kind == PIPES:
+        return pipes(v_now, v, gap, v_lead, p[0], p[1], p[2], p[3])
+    if kind == NEWELL:
+        return newell(v_now, gap, p[0], p[1], p[2], dt)
+    if kind == TYLER:
+        return tyler(v_now, v, gap, v_lead, p[0], p[1], p[2], p[3], p[4], p[5], p[6])
+    return acc(v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2, two, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7],
+               p[8])

@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, fields
+from typing import NamedTuple
 
 import numpy as np
 
@@ -200,7 +201,28 @@ class _Model:
 
     def act(self, obs: Observation) -> np.ndarray:
         obs.validate(self.n)
+        return self.act_checked(obs)
+
+    def act_checked(self, obs: Observation) -> np.ndarray:
+        """:meth:`act` for an observation whose shapes and values the caller has already checked
+        (as :meth:`Observation.validate <acc_gym.drivers.base.Observation.validate>` would): the
+        column simulation builds every observation itself and checks its values in one compiled
+        pass per step, so the models need not check them again (:mod:`acc_gym.drivers.base`)."""
         return self._law(obs, self._delay.push(obs))  # finite and clipped by the compiled law
+
+    def compiled_law(self) -> "CompiledLaw | None":
+        """What a compiled loop needs to run this model's law itself, without calling :meth:`act`
+        (the column simulation, :mod:`acc_gym.simulation._column_kernel`), or None for a subclass
+        (which may change the law: it runs through :meth:`act`). The loop must give the law the
+        scene :attr:`CompiledLaw.delay_steps` steps ago (the first one until then), exactly what
+        this model's delay buffer would hand it after a :meth:`reset`."""
+        if MODELS.get(self.name) is not type(self):
+            return None
+        params = np.full((self.n, _k.MAX_PARAMS), np.nan)
+        for i, values in enumerate(self._param_arrays()):
+            params[:, i] = values  # one value for all vehicles, or one each
+        return CompiledLaw(_k.KINDS[self.name], params, self._delay.delay_steps, self.dt,
+                           getattr(self.params, "predecessors", 1) == 2)
 
     # the parameters the model's compiled law (acc_gym.drivers._baseline_kernels) takes, in its order
     _kernel_fields: tuple[str, ...] = ()
@@ -226,6 +248,17 @@ class _Model:
         out = np.empty(np.shape(now.v)[-1])
         self.act_into(now, seen, np.arange(out.size), out)
         return out
+
+
+class CompiledLaw(NamedTuple):
+    """A baseline model's law as a compiled loop runs it (:meth:`_Model.compiled_law`):
+    :func:`acc_gym.drivers._baseline_kernels.law` with these arguments."""
+
+    kind: int  # the law's code (acc_gym.drivers._baseline_kernels.KINDS)
+    params: np.ndarray  # (n, MAX_PARAMS) each vehicle's parameters in the model's _kernel_fields order (NaN after)
+    delay_steps: int  # perception delay [steps]: the law sees the scene this many steps ago
+    dt: float  # [s] the model's step (Gipps and Newell ask for the speed at its end)
+    two_ahead: bool  # ACC's Eq. (3): the second vehicle ahead too, where there is one
 
 
 @dataclass(frozen=True)

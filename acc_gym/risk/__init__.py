@@ -13,7 +13,10 @@ product of the laws the scenario generator samples from -- :mod:`acc_gym.scenari
 normal, log-normal, Laplace and bivariate normal laws with their truncation; ``f(x)``: 1
 if the controller fails in that episode, e.g. collides):
 
-* **target** ``P = E_p[f(x)]``, per encounter of the family (one episode);
+* **target** ``P = E_p[f(x)]``, per encounter of the family (one episode); the failure is
+  the run's event: a ``collision``, a ``ttc`` under 1 s, or a ``preventable-collision`` (the
+  controller collides and UN R157's careful driver, ``cc-driver``, driving the same scenario,
+  does not; :mod:`acc_gym.risk.run`);
 * **proposal** ``q = beta p + (1 - beta) g``: a defensive mixture (``beta`` = 0.1) of the
   nominal law and ``g``, the same laws with tilted locations and scales
   (:mod:`acc_gym.risk.proposal`);

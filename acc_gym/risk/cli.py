@@ -1,4 +1,13 @@
-"""``acc-gym risk``: the accelerated collision estimate of one controller on one family."""
+"""``acc-gym risk``: the accelerated collision estimate of one controller on one family.
+
+``--event`` chooses the failure estimated (:data:`acc_gym.risk.run.EVENTS`): ``collision``
+(default), ``ttc`` (min TTC < 1 s) or ``preventable-collision`` (a collision UN R157's careful
+and competent driver, ``cc-driver``, avoids in the same scenario). The text names the
+estimated event on its first line (its estimate is the first below it, the second event's
+follows); the JSON's ``event`` names it (``estimate``; ``other`` the second event's). For
+the two collision events both say how many of the estimation episodes' collisions were
+preventable and how many not (``preventable_collisions``, ``non_preventable_collisions``).
+"""
 
 from __future__ import annotations
 
@@ -17,7 +26,9 @@ def add_parser(sub) -> None:
     p.add_argument("--family", default="cut-in", help=f"one of {', '.join(sorted(FAMILIES))} or a scenario id "
                                                       "(default cut-in)")
     p.add_argument("--event", default="collision", choices=sorted(EVENTS),
-                   help="the failure estimated first: a collision, or a time-to-collision under 1 s")
+                   help="the failure estimated first: a collision (default), a preventable-collision (one UN R157's "
+                        "careful driver, cc-driver, avoids in the same scenario), or ttc (a time-to-collision "
+                        "under 1 s)")
     p.add_argument("--method", default="is", choices=("is", "crude"),
                    help="importance sampling (default) or crude Monte Carlo, for comparison")
     p.add_argument("--target-rhw", type=float, default=0.2, help="stop at this relative half-width of the 95 %% "
@@ -60,12 +71,15 @@ def _num(x) -> str:
     return "-" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.3g}"
 
 
+NAMES = {"collision": "P(collision)", "ttc": "P(min TTC < 1 s)", "preventable-collision": "P(preventable collision)"}
+
+
 def format_result(r: RiskResult) -> str:
     """A few lines a person reads: the estimate, its interval, the cost, the warnings."""
-    lines = [f"{r.controller} on {r.family} ({r.scenario_id}), {r.method}: {r.episodes} episodes, {r.stop}, "
-             f"{r.wall_time_s:.0f} s"]
+    lines = [f"{r.controller} on {r.family} ({r.scenario_id}), {r.method}, event {r.event}: {r.episodes} episodes, "
+             f"{r.stop}, {r.wall_time_s:.0f} s"]
     for est in (r.estimate, r.other):
-        name = "P(collision)" if est.event == "collision" else "P(min TTC < 1 s)"
+        name = NAMES[est.event]
         if est.failures == 0:
             lines.append(f"  {name} per encounter < {_num(est.upper_bound)} (95 % upper bound: no failure in "
                          f"{est.episodes_total} episodes)")
@@ -82,6 +96,10 @@ def format_result(r: RiskResult) -> str:
             lines.append(f"    per hour of driving ({_num(r.occurrence_rate)} encounters/h): {value}")
         for w in est.warnings:
             lines.append(f"    warning: {w}")
+    if r.preventable_collisions is not None:
+        k, m = r.preventable_collisions, r.non_preventable_collisions
+        lines.append(f"  UN R157: of the {k + m} collisions in the estimation episodes, {k} preventable (the careful "
+                     f"driver, cc-driver, avoids the same scenario), {m} not")
     if r.min_ttc is not None:
         lines.append(f"  smallest time-to-collision seen: {r.min_ttc:.2f} s")
     return "\n".join(lines)

@@ -15,12 +15,36 @@
    rounds lowered it by less than 5 % (stalled: a controller that never fails keeps a
    positive smallest time-to-collision however the scenario is tilted), or after
    ``max_rounds``.
+   For ``event="preventable-collision"`` ``S`` is that of
+   :func:`acc_gym.risk.episodes.performance` for the event (a non-preventable collision
+   counts as uninformative) and ``L`` is 0.
 2. **Estimation rounds**: episodes from the last proposal -- a pilot round of
    ``round_size``, then rounds sized from the estimate so far to reach the target (see
    ``_planned``) -- until the relative half-width of the estimate is at most
    ``target_rhw`` with at least ``MIN_FAILURES`` failures, or ``budget`` episodes
    (adaptive rounds included) are spent; :class:`RiskResult` says which. The estimate pools the estimation rounds
    only (the adaptive rounds' weights are valid too, but their proposals are poor).
+
+**Events.** ``collision``: the controller collides; ``ttc``: its smallest time-to-collision
+is under 1 s; ``preventable-collision`` (UN R157, :mod:`acc_gym.standards.r157`): it collides
+*and* the careful and competent driver (the built-in ``cc-driver``), driving the same
+scenario (same parameters, scenario seed and surrounding drivers), does not. Every run also
+estimates a second event from the same episodes (:attr:`RiskResult.other`): ``ttc`` for a
+``collision`` run, ``collision`` for the two others -- so a ``preventable-collision`` run
+reports ``P(collision)`` beside it. Runs of the two collision events re-drive each episode
+the controller collided in with cc-driver (:mod:`acc_gym.risk.episodes`; only those, so
+the cost grows with the collisions, not the episodes) and report how many of the
+estimation rounds' collisions were preventable and how many not
+(:attr:`RiskResult.preventable_collisions`, :attr:`RiskResult.non_preventable_collisions`:
+plain counts of the episodes, not weighted; ``ttc`` runs judge nothing and report None).
+Since every preventable collision is a collision, a run's ``P(preventable collision)`` is at
+most its ``P(collision)``: always so for crude Monte Carlo (plain frequencies of the same
+episodes). With importance sampling the regression estimator (:mod:`acc_gym.risk.estimate`)
+is linear in the failure flags, so ``P(collision) - P(preventable collision)`` is its
+estimate of P(non-preventable collision) from the same episodes -- below 0 only by
+sampling noise (weights far from 1 on those collisions and their mean off 1), within that
+estimate's interval; the two are not forced into order (decided: no clipping that would
+bias either).
 
 ``method="crude"`` skips step 1: the proposal is the nominal law (every weight 1). When
 no adaptive round saw a single failure and the level never reached ``L`` (the controller
@@ -41,6 +65,7 @@ settings in the same directory are refused, naming the difference.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
@@ -51,7 +76,7 @@ from pathlib import Path
 import numpy as np
 
 from acc_gym._io import atomic_write
-from acc_gym.risk.episodes import CHUNK, RiskChunk, performance, run_chunk
+from acc_gym.risk.episodes import CHUNK, RiskChunk, performance, preventability_counts, run_chunk
 from acc_gym.risk.estimate import MIN_FAILURES, Estimate, estimate
 from acc_gym.risk.proposal import SMOOTHING, Proposal, tilted_keys
 
@@ -59,7 +84,9 @@ FAMILIES = {  # short names of the single-lane families (any scenario id is acce
     "cut-in": "singlelane/2/cut-in", "approach": "singlelane/2/approach", "following": "singlelane/2/car-following",
     "cut-out": "singlelane/2/cut-out", "lane-change": "singlelane/2/lane-change", "separate": "singlelane/2/separate",
 }
-EVENTS = {"collision": 0.0, "ttc": 1.0}  # failure level L of S [s]: collision S <= 0, min TTC < 1 s
+# failure level L of S [s]: collision S <= 0, min TTC < 1 s, preventable collision S <= 0 (episodes.performance)
+EVENTS = {"collision": 0.0, "ttc": 1.0, "preventable-collision": 0.0}
+JUDGED = ("collision", "preventable-collision")  # events whose runs re-drive collisions with cc-driver (UN R157)
 RHO = 0.1  # elite share of an adaptive round
 STALL = 0.95  # adaptive rounds stop when two rounds lowered the level by less than 5 %
 SETTINGS_FILE = "risk.json"
@@ -90,8 +117,13 @@ def env_for(scenario_id: str) -> str:
 
 
 def failed(s: np.ndarray, event: str) -> np.ndarray:
-    """Which performances ``S`` are failures of ``event``."""
-    return s <= 0.0 if event == "collision" else s < EVENTS[event]
+    """Which performances ``S`` (:func:`acc_gym.risk.episodes.performance` for ``event``) are failures of ``event``."""
+    return s <= 0.0 if event in ("collision", "preventable-collision") else s < EVENTS[event]
+
+
+def other_event(event: str) -> str:
+    """The second event a run estimates from its episodes (see the module docstring)."""
+    return "ttc" if event == "collision" else "collision"
 
 
 @dataclass
@@ -112,6 +144,9 @@ class RiskResult:
     occurrence_rate: float | None = None  # [1/h] of the family in an hour of traffic
     wall_time_s: float = 0.0
     min_ttc: float | None = None  # the smallest time-to-collision seen in the whole run [s]
+    # UN R157 (collision events only, else None): the estimation rounds' collisions that cc-driver avoids / has too
+    preventable_collisions: int | None = None
+    non_preventable_collisions: int | None = None
 
     def per_hour(self, est: Estimate | None = None) -> dict | None:
         """The estimate as events per hour of driving (times the family's occurrence rate)."""
@@ -127,7 +162,9 @@ class RiskResult:
                 "method": self.method, "event": self.event, "estimate": self.estimate.to_dict(),
                 "per_hour": self.per_hour(), "other": self.other.to_dict(), "other_per_hour": self.per_hour(self.other),
                 "stop": self.stop, "episodes": self.episodes, "rounds": self.rounds, "proposal": self.proposal,
-                "occurrence_rate": self.occurrence_rate, "wall_time_s": self.wall_time_s, "min_ttc": self.min_ttc}
+                "occurrence_rate": self.occurrence_rate, "wall_time_s": self.wall_time_s, "min_ttc": self.min_ttc,
+                "preventable_collisions": self.preventable_collisions,
+                "non_preventable_collisions": self.non_preventable_collisions}
 
 
 def _check(name: str, value, *, positive=True, integer=False, upper=None):
@@ -183,6 +220,10 @@ class _Store:
         for r in data["episodes"]:
             r["min_ttc"] = math.inf if r["min_ttc"] is None else r["min_ttc"]
             r["min_gap"] = math.inf if r["min_gap"] is None else r["min_gap"]
+            if chunk.preventability and r.get("collision") and r.get("preventable") is None:
+                raise ValueError(f"{path}: a chunk written without UN R157's preventability (an older acc-gym); "
+                                 "delete it and run again (it is recomputed)")
+            r.setdefault("preventable", None)
         return data["episodes"]
 
     def save(self, chunk: RiskChunk, records: list[dict]) -> None:
@@ -202,7 +243,10 @@ def estimate_risk(controller, family: str = "cut-in", *, event: str = "collision
                   target_rhw: float = 0.2, budget: int = 20000, round_size: int = 256, max_rounds: int = 10,
                   root_seed: int = 0, drivers: str = "typical", workers: int = 1, scheduler=None, out=None,
                   progress: bool = False, beta: float | None = None, params: dict | None = None) -> RiskResult:
-    """P(collision) (or P(min TTC < 1 s)) per encounter of ``family`` for ``controller``.
+    """P(``event``) per encounter of ``family`` for ``controller``: ``event`` one of
+    :data:`EVENTS` -- ``"collision"``, ``"ttc"`` (min TTC < 1 s) or ``"preventable-collision"``
+    (a collision UN R157's careful driver, cc-driver, avoids in the same scenario; see the
+    module docstring).
 
     ``controller``: a registered name, ``"module:attribute"``, a saved model's path (what
     the leaderboard accepts) or, with ``workers=1`` and no scheduler, an object with
@@ -216,6 +260,7 @@ def estimate_risk(controller, family: str = "cut-in", *, event: str = "collision
 
     if event not in EVENTS:
         raise ValueError(f"unknown event {event!r}; use one of {sorted(EVENTS)}")
+    judged = event in JUDGED
     if method not in ("is", "crude"):
         raise ValueError(f"unknown method {method!r}; use 'is' (importance sampling) or 'crude' (Monte Carlo)")
     target_rhw = _check("target_rhw", target_rhw, upper=1.0)
@@ -271,8 +316,8 @@ def estimate_risk(controller, family: str = "cut-in", *, event: str = "collision
     def run_round(rnd: int, prop: Proposal, size: int) -> list[dict]:
         nonlocal spent, min_ttc
         pdict = prop.to_dict()
-        chunks = [RiskChunk(sid, pdict, controller, int(root_seed), rnd, k * CHUNK, CHUNK, env_id, drivers, k, fixed)
-                  for k in range(size // CHUNK)]
+        chunks = [RiskChunk(sid, pdict, controller, int(root_seed), rnd, k * CHUNK, CHUNK, env_id, drivers, k, fixed,
+                            judged) for k in range(size // CHUNK)]
         got: dict[int, list[dict]] = {}
         todo = []
         for c in chunks:
@@ -298,18 +343,20 @@ def estimate_risk(controller, family: str = "cut-in", *, event: str = "collision
         return recs
 
     adaptive = method == "is"
-    proposal, pooled, rounds, stop = search(proposal, run_round, performance, event=event, budget=budget,
-                                            round_size=round_size, max_rounds=max_rounds if adaptive else 0,
-                                            target_rhw=target_rhw)
+    proposal, pooled, rounds, stop = search(proposal, run_round, functools.partial(performance, event=event),
+                                            event=event, budget=budget, round_size=round_size,
+                                            max_rounds=max_rounds if adaptive else 0, target_rhw=target_rhw)
     bar(None)
-    s, e = performance(pooled), exposure(rounds)
-    est = estimate_records(pooled, s, event, spent, e)
-    other = estimate_records(pooled, s, "ttc" if event == "collision" else "collision", spent, e)
+    e = exposure(rounds)
+    est = estimate_records(pooled, performance(pooled, event), event, spent, e)
+    second = other_event(event)
+    other = estimate_records(pooled, performance(pooled, second), second, spent, e)
     rate = stype.occurrence_rate
+    split = preventability_counts(pooled) if judged else (None, None)
     return RiskResult(label, family, sid, method, event, est, other, stop, spent, rounds,
                       proposal.to_dict() if adaptive else None,
                       None if rate is None else float(rate.mean), time.monotonic() - started,
-                      None if not math.isfinite(min_ttc) else min_ttc)
+                      None if not math.isfinite(min_ttc) else min_ttc, *split)
 
 
 def search(proposal: Proposal, simulate, perf, *, event: str = "collision", budget: int, round_size: int,
@@ -319,8 +366,9 @@ def search(proposal: Proposal, simulate, perf, *, event: str = "collision", budg
     ``simulate(round, proposal, size)`` returns ``size`` records (dicts with ``params``:
     name -> value of the tilted parameters, ``log_w`` and ``nominal`` as
     :func:`acc_gym.risk.episodes.run_chunk` makes them); ``perf(records)`` their
-    performances ``S``. Returns the last proposal, the estimation rounds' records, a
-    summary per round and why it stopped (``"target reached"`` or ``"budget spent"``).
+    performances ``S`` for ``event`` (:func:`acc_gym.risk.episodes.performance`). Returns the
+    last proposal, the estimation rounds' records, a summary per round and why it stopped
+    (``"target reached"`` or ``"budget spent"``).
     """
     level = EVENTS[event]
     rounds: list[dict] = []
@@ -397,7 +445,8 @@ def exposure(rounds: list[dict]) -> float:
 
 
 def estimate_records(recs: list[dict], s: np.ndarray, event: str, spent: int, exposure: float) -> Estimate:
-    """The estimate of ``event`` from records and their performances ``s``."""
+    """The estimate of ``event`` from records and their performances ``s`` for that event
+    (:func:`acc_gym.risk.episodes.performance` with ``event``)."""
     return estimate(np.array([r["log_w"] for r in recs]), failed(s, event), event=event, episodes_total=spent,
                     exposure=exposure, nominal=np.array([r["nominal"] for r in recs]))
 

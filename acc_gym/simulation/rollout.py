@@ -8,6 +8,25 @@ so a single :class:`~acc_gym.drivers.mpc.MPCDriver` steps every column's followe
 Each step has two phases: every model decides from the same snapshot (gaps, speeds and
 accelerations at the start of the step), then every vehicle moves (exact integration,
 no reversing; :mod:`acc_gym.vehicle`). So the order of the models never matters.
+
+Two paths give the same numbers (``tests/simulation/test_column_kernel.py``: equal to the
+per-follower loop, bit for bit on the runs tested):
+
+* a column whose followers are all baseline models (IDM, Gipps, ..., ACC:
+  :meth:`~acc_gym.drivers.baselines._Model.compiled_law`) runs in one compiled call for the
+  whole run (:func:`acc_gym.simulation._column_kernel.run`): no observation objects, no
+  Python per step;
+* any other column (an MPC driver, a user's driver object, a baseline model whose delay
+  buffer two slots share) steps in Python, each follower's model called with its
+  :class:`~acc_gym.drivers.base.Observation`; the observations of a step are built and their
+  values checked in one compiled call (:func:`acc_gym.simulation._column_kernel.observe`),
+  their shapes once per run (``validate`` on the first step: they are the column's own), and
+  baseline models are called through ``act_checked`` (no second check of each field).
+
+Either way a value that goes wrong at run time -- a NaN, e.g. from a driver that asked for a
+NaN acceleration -- stops the run with a ``ValueError`` naming the vehicle, the step and
+the field. A negative gap is a collision: recorded (:attr:`Trajectory.collided`), not an
+error, as before.
 """
 
 from __future__ import annotations
@@ -18,6 +37,7 @@ import numpy as np
 
 from acc_gym._validation import check_finite, check_positive
 from acc_gym.drivers.base import Observation
+from acc_gym.simulation import _column_kernel as _C
 from acc_gym.simulation.profiles import SpeedProfile
 from acc_gym.vehicle import VehicleParams, applied_acceleration, integrate
 
@@ -121,42 +141,79 @@ def simulate_column(lead: SpeedProfile, followers, x0, v0, *, duration: float | 
     out["slack"][:] = np.nan
     out["a_des"][0] = np.nan
 
-    def gaps_of(x):
-        g = np.full((B, n), np.inf)
-        g[:, 1:] = x[:, :-1] - lengths[:-1] - x[:, 1:]
-        return g
-
-    def record(k, x, v, a, g):
-        out["x"][k], out["v"][k], out["a"][k], out["gap"][k] = x, v, a, g
-
     for m in followers:
         if hasattr(m, "reset"):
             m.reset()
-    g = gaps_of(x)
-    record(0, x, v, a, g)
+    out["x"][0], out["v"][0], out["a"][0] = x, v, a
+    out["gap"][0, :, 0] = np.inf
+    out["gap"][0, :, 1:] = gaps0
     t = np.arange(T + 1) * dt
     # the profile's own clock: step k is its time times[0] + k dt (a profile that starts at t0 = 10 s
     # brakes at its own 10 + 5 s, as ProfileDriver plays it), and the duration runs from there
     prof_next = lead.speed(float(lead.times[0]) + t[1:])  # (T,) or (B, T)
     if prof_next.ndim == 1:
         prof_next = np.broadcast_to(prof_next, (B, T))
+    stop_at = np.zeros(B) if stop is None else stop  # [m] (unused without a stop position)
+    laws = _compiled_laws(followers)
+    fault = np.zeros(4)  # column, vehicle, field (index in Observation) and value of a bad observation value
+    if laws is not None:
+        kinds, params, model_dt, delays, two = laws
+        done = _C.run(np.ascontiguousarray(prof_next, dtype=float), float(dt), lengths,
+                      np.ascontiguousarray(np.broadcast_to(veh.as_matrix(n), (B, n, 10))), float(sensor_range),
+                      stop_at, stop is not None, kinds, params, model_dt, delays, two,
+                      out["x"], out["v"], out["a"], out["a_des"], out["gap"], fault)
+        if done < T:
+            _raise_bad_value(done, fault, out, dt)
+    else:
+        _step_each_follower(followers, out, prof_next, dt, veh, lengths, float(sensor_range), stop_at,
+                            stop is not None, fault)
+    stats = {j: m.stats for j, m in enumerate(followers, start=1) if hasattr(m, "stats")}
+    sq = (lambda arr: arr[:, 0]) if squeeze else (lambda arr: arr)
+    return Trajectory(t=t, **{k: sq(val) for k, val in out.items()}, lengths=lengths, solver_stats=stats)
+
+
+def _compiled_laws(followers) -> tuple | None:
+    """The followers' laws as :func:`acc_gym.simulation._column_kernel.run` takes them (slot
+    ``j - 1`` for follower ``j``), or None if some follower is not a baseline model or shares a
+    reaction-delay buffer with another slot (the same model object given twice: its one buffer
+    then mixes both slots' scenes, which only the per-follower loop reproduces)."""
+    laws = []
+    for m in followers:
+        law = m.compiled_law() if hasattr(m, "compiled_law") else None
+        if law is None or (law.delay_steps > 0 and sum(f is m for f in followers) > 1):
+            return None
+        laws.append(law)
+    return (np.array([law.kind for law in laws], dtype=np.int64),
+            np.ascontiguousarray(np.stack([law.params for law in laws])),  # (n-1, B, MAX_PARAMS)
+            np.array([law.dt for law in laws]), np.array([law.delay_steps for law in laws], dtype=np.int64),
+            np.array([law.two_ahead for law in laws]))
+
+
+def _step_each_follower(followers, out: dict, prof_next: np.ndarray, dt: float, veh: VehicleParams,
+                        lengths: np.ndarray, sensor_range: float, stop: np.ndarray, has_stop: bool,
+                        fault: np.ndarray) -> None:
+    """Steps ``0 .. T-1`` with each follower's model called in Python on its observation, the
+    trajectory recorded into ``out`` (row 0 filled). The observations of a step are one array
+    made afresh (a model may keep what it was given, e.g. in a delay buffer), built and checked
+    by :func:`acc_gym.simulation._column_kernel.observe`; on the first step each is also
+    validated as a model's ``act`` would (shapes and types: the column's, the same every step)."""
+    T, B, n = prof_next.shape[1], out["x"].shape[1], out["x"].shape[2]
+    x, v, a = out["x"][0], out["v"][0], out["a"][0]
     a_des = np.zeros((B, n))
+    act = [getattr(m, "act_checked", m.act) for m in followers]
     for k in range(T):
         # phase 1: every driver decides from the same snapshot
         a_des[:, 0] = (prof_next[:, k] - v[:, 0]) / dt
+        rows = np.empty((n - 1, len(_C.FIELDS), B))
+        if not _C.observe(x, v, a, lengths, sensor_range, stop, has_stop, rows, fault):
+            _raise_bad_value(k, fault, out, dt)
         for j, model in enumerate(followers, start=1):
-            seen = g[:, j] <= sensor_range
-            gap_j = np.where(seen, g[:, j], np.inf)
-            if j >= 2:
-                gap2 = x[:, j - 2] - lengths[j - 2] - x[:, j]
-                gap2 = np.where(seen & (gap2 <= sensor_range), gap2, np.inf)
-                obs2 = dict(gap2=gap2, v_lead2=v[:, j - 2].copy(), a_lead2=a[:, j - 2].copy())
-            else:
-                obs2 = {}
-            obs = Observation(v=v[:, j].copy(), a=a[:, j].copy(), gap=gap_j, v_lead=v[:, j - 1].copy(),
-                              a_lead=a[:, j - 1].copy(),
-                              stop_gap=None if stop is None else stop - x[:, j], **obs2)
-            a_des[:, j] = model.act(obs)
+            r = rows[j - 1]
+            obs = Observation(*r[:5], *((r[5], r[6], r[7]) if j >= 2 else (None, None, None)),
+                              stop_gap=r[8] if has_stop else None)
+            if k == 0:
+                obs.validate(B)
+            a_des[:, j] = act[j - 1](obs)
             info = getattr(model, "info", None) or {}
             for key in ("mode", "path", "a_req", "slack"):
                 if key in info:
@@ -164,9 +221,27 @@ def simulate_column(lead: SpeedProfile, followers, x0, v0, *, duration: float | 
         # phase 2: every vehicle moves
         a = applied_acceleration(a_des, v, veh)
         x, v = integrate(x, v, a, dt)
-        g = gaps_of(x)
         out["a_des"][k + 1] = a_des
-        record(k + 1, x, v, a, g)
-    stats = {j: m.stats for j, m in enumerate(followers, start=1) if hasattr(m, "stats")}
-    sq = (lambda arr: arr[:, 0]) if squeeze else (lambda arr: arr)
-    return Trajectory(t=t, **{k: sq(val) for k, val in out.items()}, lengths=lengths, solver_stats=stats)
+        out["x"][k + 1], out["v"][k + 1], out["a"][k + 1] = x, v, a
+        out["gap"][k + 1, :, 0] = np.inf
+        out["gap"][k + 1, :, 1:] = x[:, :-1] - lengths[:-1] - x[:, 1:]
+
+
+def _raise_bad_value(k: int, fault: np.ndarray, out: dict, dt: float) -> None:
+    """Raise ``ValueError`` for the bad observation value that stopped step ``k`` (``fault``:
+    column, vehicle, field, value), naming the vehicle, the step and, when a driver asked for a
+    non-finite acceleration the step before (where a NaN comes from), that driver's vehicle."""
+    b, j, f = (int(i) for i in fault[:3])
+    name = _C.FIELDS[f]
+    column = f" in column {b}" if out["x"].shape[1] > 1 else ""
+    cause = ""
+    bad = np.flatnonzero(~np.isfinite(out["a_des"][k, b])) if k >= 1 else []
+    if len(bad):
+        who = "the lead's speed profile" if bad[0] == 0 else f"vehicle {bad[0]}'s driver"
+        cause = f" ({who} asked for an acceleration of {float(out['a_des'][k, b, bad[0]])!r} m/s^2 at step {k - 1})"
+    raise ValueError(f"column simulation stopped at step {k} (t = {k * dt:g} s): vehicle {j}{column} observes "
+                     f"{name} = {float(fault[3])!r}, which must be {_RULES[name]}{cause}")
+
+
+_RULES = {name: ("not NaN or -inf (inf: none)" if name in ("gap", "gap2", "stop_gap") else
+                 "finite and >= 0" if name == "v" else "finite") for name in _C.FIELDS}

@@ -50,11 +50,9 @@ The cut-out's decisions [R]:
   time_headway x ego_speed + 4.7 m`` (the lead's length), else a ValueError. The environments
   judge the ego's collisions only (its gap to whoever is ahead of it); a lead running into the
   slower vehicle would go unreported, hence the check.
-* The revealed vehicle is 10 m long (:data:`CUT_OUT_OTHER_LENGTH`, a van or small truck):
-  longer than the most the ego closes in over one step (33.3 m/s x 0.2 s = 6.7 m at 120 km/h
-  onto a stopped one), so a collision shows as a gap <= 0 at the end of a step even where the
-  world checks only the end-of-step gaps (a 4.7 m car can be driven into and past within one
-  step at that closing speed).
+* The revealed vehicle is a 4.7 m car (:data:`CUT_OUT_OTHER_LENGTH`). (At 120 km/h onto a
+  stopped car the ego closes 6.7 m in one step, more than a car's length: the world detects
+  such a collision inside a step too, :func:`acc_gym.simulation._world_kernel.mark_passed`.)
 """
 
 from __future__ import annotations
@@ -75,7 +73,7 @@ CUT_OUT_GRID = {"ego_speed": (60 / 3.6, 90 / 3.6, 120 / 3.6), "other_speed": (0.
 CUT_OUT_HEADWAY = 1.0  # [s] the ego's time headway to the lead before it leaves
 CUT_OUT_REVEAL = 6.0  # [s] the reveal: the first step whose observation shows the revealed vehicle
 CUT_OUT_LC_DURATION = 3.0  # [s] the lead's half-cosine move over one lane (mean 1.25 m/s lateral)
-CUT_OUT_OTHER_LENGTH = 10.0  # [m] the revealed vehicle (longer than one step's closing at 120 km/h)
+CUT_OUT_OTHER_LENGTH = 4.7  # [m] the revealed vehicle, a car
 CUT_OUT_ID = "r157/cut-out"  # built by staged_cut_out, not a registered scenario type
 ENV_ID = "acc_gym/SingleLane-v0"
 
@@ -134,7 +132,7 @@ def staged_cut_out(ego_speed: float, time_headway: float, other_speed: float, ga
                    duration: float = DURATION):
     """R157's cut-out: the ego (``"SV"``, lane 1) at ``ego_speed`` [m/s] follows a lead (``"POV"``)
     at the same speed, ``time_headway`` [s] behind it (bumper gap ``time_headway x ego_speed``);
-    ahead of the lead in the same lane a vehicle (``"POV2"``, 10 m long) drives at ``other_speed``
+    ahead of the lead in the same lane a vehicle (``"POV2"``, a 4.7 m car) drives at ``other_speed``
     [m/s] (0: stopped). The lead moves to lane 2 in :data:`CUT_OUT_LC_DURATION` s, its contour
     leaving lane 1 half a step before :data:`CUT_OUT_REVEAL`, when the ego, if it held
     ``ego_speed``, is ``gap`` [m] (bumper to bumper) behind POV2. Both others keep their speeds

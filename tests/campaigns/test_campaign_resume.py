@@ -25,7 +25,8 @@ def _check_same(reference, out, summary):
     rows = campaign.rows()
     assert [r["index"] for r in rows] == list(range(10))  # each episode exactly once
     assert rows == ref_campaign.rows()
-    for key in ("episodes", "collisions", "mean_score", "share_qualified", "share_comfortable",
+    for key in ("episodes", "collisions", "preventable_collisions", "non_preventable_collisions", "mean_score",
+                "share_qualified", "share_comfortable",
                 "share_safe_spacing", "speed_overshoot", "damping_ratio", "min_ttc", "max_jerk", "complete"):
         assert summary[key] == ref_summary[key], key
 
