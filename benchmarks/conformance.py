@@ -1,6 +1,6 @@
 """The built-in controllers' conformance table (the one in the README and docs/standards.md).
 
-    python benchmarks/conformance.py           # the Markdown table (about a minute on 2 cores)
+    python benchmarks/conformance.py           # the Markdown table (about 2.5 minutes on 2 cores)
     python benchmarks/conformance.py --json    # ... and one JSON object on the last line
 
 Each controller goes through ``acc-gym conformance NAME``: ISO 15622 on the iso15622-v1
