@@ -344,7 +344,8 @@ def main(argv=None) -> dict:
     else:
         for key, value in out.items():
             if key.endswith("_steps_per_s"):
-                print(f"{key:42s} {value:>12,.0f} steps/s  (runs {out[key + '_runs']})")
+                unit = "vehicle-steps/s" if "vehicle_steps" in key else "steps/s"
+                print(f"{key:42s} {value:>12,.0f} {unit}  (runs {out[key + '_runs']})")
         if "sumo_ratio" in out:
             print(f"acc_gym (IDM drivers) / SUMO (libsumo): {out['sumo_ratio']:.2f}x")
         if "column_ratio_cavsandbox" in out:

@@ -140,7 +140,8 @@ def test_bench_env_column_case_and_its_cavsandbox_peer_do_the_same_work():
 def test_bench_env_peers_reports_the_column_ratio_or_why_not():
     """--peers adds column_vehicle_steps_per_s and column_ratio_cavsandbox; without cavsandbox
     (here made unimportable) the ratio is null with the reason, and the script still runs."""
-    pytest.importorskip("libsumo", reason="libsumo is not installed (pip install '.[bench]' or '.[test]'): --peers needs it")
+    pytest.importorskip("libsumo", reason="libsumo is not installed (pip install '.[bench]' or '.[test]'): "
+                                          "--peers needs it")
     argv = ["bench_env.py", "--json", "--repeats", "1", "--steps", "200", "--vector-steps", "3", "--num-envs", "4",
             "--workers", "1", "--cases", "env_idm", "--peers"]
     code = ("import runpy, sys; sys.modules['cacc_sim'] = None; sys.argv = %r; "
@@ -148,7 +149,8 @@ def test_bench_env_peers_reports_the_column_ratio_or_why_not():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
     out = json.loads(r.stdout.strip().splitlines()[-1])
     assert out["column_vehicle_steps_per_s"] > 0 and len(out["column_vehicle_steps_per_s_runs"]) == 1
-    assert out["column_ratio_cavsandbox"] is None and "cavsandbox is not installed" in out["column_ratio_cavsandbox_reason"]
+    assert out["column_ratio_cavsandbox"] is None
+    assert "cavsandbox is not installed" in out["column_ratio_cavsandbox_reason"]
     assert "cavsandbox_column_vehicle_steps_per_s" not in out
     try:
         import cacc_sim  # noqa: F401
