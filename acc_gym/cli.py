@@ -438,6 +438,9 @@ def _add_leaderboard_parser(sub) -> None:
     p.add_argument("--no-string-stability", action="store_true",
                    help="skip the string-stability column (8 copies of each controller in a column, measured in "
                         "the same sandbox after its episodes: a few seconds each)")
+    p.add_argument("--no-iso15622", action="store_true",
+                   help="skip the ISO 15622 column (the iso15622-v1 battery, 30 episodes per controller in its "
+                        "sandbox: a few seconds each; it does not change points or rank)")
     p.add_argument("--json", action="store_true", help="print the ranking as one JSON object")
 
 
@@ -462,7 +465,8 @@ def _leaderboard(args, parser) -> int:
                                            "summary": by_name[n]["summary"] and by_name[n]["summary"]["overall"],
                                            **({"risk": by_name[n].get("risk")} if args.risk else {}),
                                            **({} if args.no_string_stability else
-                                              {"string_stability": by_name[n].get("string_stability")})}
+                                              {"string_stability": by_name[n].get("string_stability")}),
+                                           **({} if args.no_iso15622 else {"iso15622": by_name[n].get("iso15622")})}
                                           for n in results["ranking"]], "out": str(args.out)}), flush=True)
         else:
             m = results["manifest"]
@@ -480,7 +484,8 @@ def _leaderboard(args, parser) -> int:
                                   step_budget=args.step_budget, budget=args.budget, episodes=args.episodes,
                                   report=not args.no_report, progress=progress, sandbox=args.sandbox, show=show,
                                   secret=secret, risk={"family": args.risk_family, "budget": args.risk_budget}
-                                  if args.risk else None, string_stability=not args.no_string_stability)
+                                  if args.risk else None, string_stability=not args.no_string_stability,
+                                  iso15622=not args.no_iso15622)
     except (OutputError, RuntimeError) as exc:  # a failed write, or a sandbox this machine cannot give
         print(f"acc-gym leaderboard: error: {exc}", file=sys.stderr)
         return 1

@@ -11,6 +11,8 @@
 * :mod:`~acc_gym.leaderboard.results` -- aggregation, ranking, the files (atomic) and
   :func:`load_results`;
 * :mod:`~acc_gym.leaderboard.report` -- the self-contained HTML report.
+* :mod:`~acc_gym.leaderboard.iso15622` -- the ISO 15622 column (the ``iso15622-v1``
+  battery driven through each controller's sandbox).
 
 Controllers are given by reference (a registered name of :mod:`acc_gym.controllers`,
 ``"module:attribute"`` or a saved model path) and loaded in their own sandboxed process;

@@ -29,6 +29,12 @@ controller's traceback when it sent one); episodes finished before a failure are
 (reported, not ranked). With ``traces=True`` the simulation then re-runs the worst
 episode (lowest score, then a collision first, then the earliest) with recording, for
 the report's plots. The controller's standard output and error go to its own log file.
+
+Then the columns measured through the same sandbox, each a cell whose failure is its own (the
+episodes stand): string stability (``platoon``) and ISO 15622 (``iso15622``,
+:mod:`acc_gym.leaderboard.iso15622`). A controller failure leaves the sandbox's socket in an
+unknown state (an answer may still be on its way), so a column after a failed one starts the
+controller afresh, under the same total budget.
 """
 
 from __future__ import annotations
@@ -207,10 +213,27 @@ def _exchange(ctl, obs, starts, slots, deadline_step: float | None, deadline_tot
         raise ControllerFailed(f"the controller's process died (exit code {code}) at {where}") from None
 
 
-def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float, traces: bool, log_path: str,
-             uid: int | None, sandbox: str, in_flight: int, runner_pid: int, platoon: bool = False) -> None:
-    """The simulation process for one controller (see the module docstring)."""
+def _hello(ctl, budget: float, deadline_total: float) -> float | None:
+    """The controller's ready message: the time gap it declares; its failures as :class:`ControllerFailed`."""
     from acc_gym.leaderboard import protocol
+
+    try:
+        return protocol.recv_hello(ctl.sock, deadline_total)
+    except protocol.Timeout:
+        raise ControllerFailed(f"exceeded the total budget of {budget:g} s while loading (killed)") from None
+    except protocol.ControllerError as exc:
+        first, _, tb = str(exc).partition("\n")
+        raise ControllerFailed(first, tb or None) from None
+    except (protocol.Closed, protocol.ProtocolError, OSError) as exc:
+        code = ctl.process.wait(timeout=5.0) if ctl.process.poll() is None else ctl.process.returncode
+        raise ControllerFailed(f"the controller's process ended while loading (exit code {code}; {exc!r})") \
+            from None
+
+
+def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float, traces: bool, log_path: str,
+             uid: int | None, sandbox: str, in_flight: int, runner_pid: int, platoon: bool = False,
+             iso15622: bool = False) -> None:
+    """The simulation process for one controller (see the module docstring)."""
     from acc_gym._process import become_subreaper, die_with_parent, kill_all
     from acc_gym.leaderboard.sandbox import ControllerProcess
 
@@ -234,17 +257,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
         from acc_gym.leaderboard.batch import BatchRuns
 
         ctl = ControllerProcess(reference, log_path=log_path, budget=budget, uid=uid, sandbox=sandbox)
-        try:
-            declared = protocol.recv_hello(ctl.sock, deadline_total)  # the time gap it is judged at
-        except protocol.Timeout:
-            raise ControllerFailed(f"exceeded the total budget of {budget:g} s while loading (killed)") from None
-        except protocol.ControllerError as exc:
-            first, _, tb = str(exc).partition("\n")
-            raise ControllerFailed(first, tb or None) from None
-        except (protocol.Closed, protocol.ProtocolError, OSError) as exc:
-            code = ctl.process.wait(timeout=5.0) if ctl.process.poll() is None else ctl.process.returncode
-            raise ControllerFailed(f"the controller's process ended while loading (exit code {code}; {exc!r})") \
-                from None
+        declared = _hello(ctl, budget, deadline_total)  # the time gap it is judged at
         envs: dict = {}
 
         def env_for(slot: int, env_id: str):
@@ -346,8 +359,25 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
             run_jobs([k], True, lambda j, run: kept.setdefault("run", run))
             run = kept["run"]
             conn.send(("trace", {"position": k, "score": float(run.info["score"]), "trace": run.trace()}))
+        sound = True  # the sandbox answered every round trip so far (its socket is in step)
+        next_slot = [in_flight]  # past every slot used so far (the episodes': rows of in_flight)
         if platoon:
-            conn.send(("string_stability", _platoon(ctl, declared, step_budget, budget, deadline_total)))
+            cell, sound = _platoon(ctl, declared, step_budget, budget, deadline_total, next_slot)
+            conn.send(("string_stability", cell))
+        if iso15622:
+            from acc_gym.leaderboard.iso15622 import failed_cell
+
+            try:
+                if not sound:  # the controller failed in the column before: a fresh one, as it was loaded
+                    ctl.close()
+                    ctl = ControllerProcess(reference, log_path=log_path, budget=budget, uid=uid, sandbox=sandbox)
+                    _hello(ctl, budget, deadline_total)  # judged at the time gap it declared first
+                # fresh slots: every battery episode starts from a fresh copy of the controller
+                cell = _iso15622(ctl, declared, step_budget, budget, deadline_total,
+                                 first_slot=next_slot[0] if sound else 0)
+            except ControllerFailed as exc:
+                cell = failed_cell(exc.reason)
+            conn.send(("iso15622", cell))
         conn.send(("done", None))
     except ControllerFailed as exc:
         conn.send(("failed", {"reason": exc.reason, "traceback": exc.tb}))
@@ -365,20 +395,56 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
         conn.close()
 
 
-def _platoon(ctl, declared, step_budget: float, budget: float, deadline_total: float) -> dict:
+def _platoon(ctl, declared, step_budget: float, budget: float, deadline_total: float,
+             next_slot: list | None = None) -> tuple[dict, bool]:
     """The string-stability cell (:func:`acc_gym.evaluation.string_stability.leaderboard_verdict`),
-    its column's copies in the controller's sandbox; a failure there is the cell's, the
-    episodes already received stand."""
+    its column's copies in the controller's sandbox, and whether the controller answered every
+    round trip (False: it failed there; its socket is out of step). A failure there is the
+    cell's, the episodes already received stand. ``next_slot`` (a one-item list): raised past
+    every slot the column uses, so that a later column's copies are fresh ones."""
     from acc_gym.evaluation.string_stability import leaderboard_verdict, remote_actors
 
     def exchange(obs, starts, slots):
+        if next_slot is not None and len(slots):
+            next_slot[0] = max(next_slot[0], int(max(slots)) + 1)
         return _exchange(ctl, obs, starts, slots, time.monotonic() + step_budget * len(slots), deadline_total,
                          step_budget, budget, "the string-stability column")
 
     try:
-        return leaderboard_verdict(remote_actors(exchange), declared)
+        return leaderboard_verdict(remote_actors(exchange), declared), True
     except ControllerFailed as exc:
-        return {"failed": exc.reason}
+        return {"failed": exc.reason}, False
+
+
+def _iso15622(ctl, declared, step_budget: float, budget: float, deadline_total: float, first_slot: int) -> dict:
+    """The ISO 15622 cell (:mod:`acc_gym.leaderboard.iso15622`): the battery's episodes run here,
+    in the simulation process, with the actions of the controller's copies in the sandbox
+    (slots ``first_slot``...); :class:`ControllerFailed` when the controller fails.
+
+    Decisions: the first round trip is exempt from the step budget, as the episodes' first is
+    (the sandbox makes the battery's 30 fresh copies then; a controller that cannot be copied is
+    loaded again for each); only the total budget bounds it. A NaN or infinite action is the
+    controller's failure, as in its episodes."""
+    import numpy as np
+
+    from acc_gym.leaderboard.iso15622 import BATTERY, cell
+    from acc_gym.standards.battery import SEEDS, remote_iso15622_report
+
+    first = [True]
+    where = f"the ISO 15622 column ({BATTERY})"
+
+    def exchange(obs, starts, slots):
+        step_deadline = None if first[0] else time.monotonic() + step_budget * len(slots)
+        first[0] = False
+        actions = _exchange(ctl, obs, starts, slots, step_deadline, deadline_total, step_budget, budget, where)
+        bad = ~np.isfinite(actions)
+        if bad.any():
+            value = actions[np.argmax(bad)]
+            raise ControllerFailed(f"ValueError: action {'is NaN' if np.isnan(value) else 'must be finite'}: "
+                                   f"{value!r} (at {where})")
+        return actions
+
+    return cell(remote_iso15622_report(exchange, declared, BATTERY, SEEDS, first_slot=first_slot))
 
 
 @dataclass
@@ -392,13 +458,15 @@ class Outcome:
     episodes: list | None = None
     trace: dict | None = None
     string_stability: dict | None = None
+    iso15622: dict | None = None
     wall_time_s: float = 0.0
     log: str | None = None
 
 
 class _Running:
     def __init__(self, ctx, reference: str, jobs: list, step_budget: float, budget: float, traces: bool,
-                 log_path: str, uid: int | None, sandbox: str, in_flight: int, platoon: bool = False):
+                 log_path: str, uid: int | None, sandbox: str, in_flight: int, platoon: bool = False,
+                 iso15622: bool = False):
         self.reference, self.jobs = reference, jobs
         self.outcome = Outcome(reference, episodes=[], log=log_path)
         self.ledger = Ledger(jobs)
@@ -406,7 +474,7 @@ class _Running:
         self.conn, child_conn = ctx.Pipe(duplex=False)
         self.process = ctx.Process(target=simulate, name=f"acc-gym-leaderboard[{reference}]",
                                    args=(child_conn, reference, jobs, step_budget, budget, traces, log_path, uid,
-                                         sandbox, in_flight, os.getpid(), platoon), daemon=False)
+                                         sandbox, in_flight, os.getpid(), platoon, iso15622), daemon=False)
         self.started = time.monotonic()
         self.process.start()
         child_conn.close()
@@ -424,6 +492,8 @@ class _Running:
                     self.outcome.trace = payload[0]
                 elif kind == "string_stability":
                     self.outcome.string_stability = payload[0]
+                elif kind == "iso15622":
+                    self.outcome.iso15622 = payload[0]
                 elif kind == "done":
                     problem = self.ledger.problem()
                     if problem is not None:
@@ -459,14 +529,16 @@ class _Running:
 
 def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_budget: float, budget: float,
                  traces: bool = False, progress=None, log_dir=None, uids: dict | None = None,
-                 sandbox: str = "process", in_flight: int = IN_FLIGHT, platoon: bool = False) -> dict[str, Outcome]:
+                 sandbox: str = "process", in_flight: int = IN_FLIGHT, platoon: bool = False,
+                 iso15622: bool = False) -> dict[str, Outcome]:
     """Run ``jobs`` for every controller, ``workers`` controllers at a time (module docstring).
 
     ``uids`` maps a reference to the user id its sandbox runs as (None: the runner's);
     ``log_dir`` receives one log file per controller. Returns ``{reference: Outcome}`` in
     the order of ``references``; ``progress(outcome)`` is called as each one finishes. With
     ``platoon``, after its episodes each controller's string stability is measured through the
-    same sandbox (``Outcome.string_stability``)."""
+    same sandbox (``Outcome.string_stability``); with ``iso15622``, then its ISO 15622 verdict on the
+    ``iso15622-v1`` battery (``Outcome.iso15622``, :mod:`acc_gym.leaderboard.iso15622`)."""
     import tempfile
 
     ctx = multiprocessing.get_context(START_METHOD)
@@ -481,7 +553,7 @@ def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_b
             while pending and len(running) < workers:
                 ref = pending.pop(0)
                 running.append(_Running(ctx, ref, jobs, step_budget, budget, traces, log_file(log_dir, ref),
-                                        uids.get(ref), sandbox, in_flight, platoon))
+                                        uids.get(ref), sandbox, in_flight, platoon, iso15622))
             wait([r.conn for r in running] + [r.process.sentinel for r in running], timeout=POLL_S)
             now = time.monotonic()
             for r in list(running):

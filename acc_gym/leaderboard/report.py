@@ -16,7 +16,7 @@ import html
 import numpy as np
 from matplotlib.figure import Figure
 
-from acc_gym.leaderboard.results import RANKING_RULE, formatted_rows
+from acc_gym.leaderboard.results import RANKING_RULE, column_notes, formatted_rows
 from acc_gym.plotting import img
 
 CSS = """
@@ -78,6 +78,7 @@ def render_html(results: dict, traces: dict | None = None) -> str:
         cls = ' class="failed"' if r[2] != "ok" else ""
         parts.append(f"<tr{cls}>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>")
     parts.append("</table>")
+    parts += [f"<p class='small'>{e(note)}.</p>" for note in column_notes(results)]
     failed = [c for c in results["controllers"] if c["status"] != "ok"]
     if failed:
         parts.append("<h2>Failed</h2><ul>")

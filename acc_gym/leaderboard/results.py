@@ -22,7 +22,9 @@ collision still counts in the collision columns). Equal
 figures (within :data:`~acc_gym.reproducibility.SCORE_TOLERANCE`, what reproduces across
 machines) share a rank and are listed by name; there is no tie-break between different
 controllers' different figures other than the figures. The table shows mean points,
-the mean paper score, share qualified, collisions per hour and minimum TTC side by side.
+the mean paper score, share qualified, collisions per hour and minimum TTC side by side;
+the string-stability and ISO 15622 columns (:mod:`acc_gym.leaderboard.iso15622`) stand
+beside the ranking and change no points and no rank.
 Nothing in the scores or the ranking depends on timing or on how many controllers ran
 in parallel.
 
@@ -168,6 +170,9 @@ COLUMNS = ("rank", "controller", "status", "points", "score", "qualified", "coll
 RISK_COLUMNS = ("risk_p", "risk_ci_low", "risk_ci_high", "risk_upper_bound", "risk_episodes")  # with --risk
 # the string-stability column (on by default): numbers for the CSV, the verdict's text for the tables
 STRING_COLUMNS = ("string_max_gain", "string_stable", "string_disturbance_growth")
+# the ISO 15622 column (on by default): the verdict (True / False / empty: not exercised or not run), the failed
+# requirements' names joined by ";", and the reason when the controller failed in the battery
+ISO15622_COLUMNS = ("iso15622_passed", "iso15622_failed", "iso15622_failed_to_run")
 #: table columns with an interval, and the summary figure they show
 INTERVALS = {"points": "mean_points", "score": "mean_score", "qualified": "share_qualified",
              "collisions_per_hour": "collisions_per_hour", "comfortable": "share_comfortable",
@@ -211,6 +216,12 @@ def table_rows(results: dict) -> list[dict]:
             row["string_max_gain"] = cell.get("max_gain")
             row["string_stable"] = cell.get("string_stable")
             row["string_disturbance_growth"] = cell.get("disturbance_growth")
+        if _has_iso15622(results):
+            cell = c.get("iso15622") or {}
+            row["iso15622"] = c.get("iso15622")
+            row["iso15622_passed"] = cell.get("passed")
+            row["iso15622_failed"] = ";".join(cell.get("failed") or []) if "passed" in cell else None
+            row["iso15622_failed_to_run"] = cell.get("failed_to_run")
         vs = c.get("vs_above")
         row["vs_above"] = uncertainty.verdict(vs)
         row["vs_above_diff"] = vs["diff"] if vs else None
@@ -242,6 +253,18 @@ def _has_string_stability(results: dict) -> bool:
     return bool((results["manifest"].get("settings") or {}).get("string_stability"))
 
 
+def _has_iso15622(results: dict) -> bool:
+    return bool((results["manifest"].get("settings") or {}).get("iso15622"))
+
+
+def column_notes(results: dict) -> list[str]:
+    """The lines under the ranking table on the optional columns that ran (string stability, ISO 15622)."""
+    from acc_gym.leaderboard import iso15622
+
+    return ([string_stability_note(results)] if _has_string_stability(results) else []) + \
+        ([iso15622.note(results)] if _has_iso15622(results) else [])
+
+
 def _fmt(key: str, value) -> str:
     if key == "risk":
         from acc_gym.risk.isolated import format_risk
@@ -253,6 +276,10 @@ def _fmt(key: str, value) -> str:
         from acc_gym.evaluation.string_stability import format_verdict
 
         return format_verdict(value)
+    if key == "iso15622":
+        from acc_gym.leaderboard.iso15622 import format_cell
+
+        return format_cell(value)
     if value is None:
         return "-"
     if key == "vs_above":
@@ -286,6 +313,10 @@ def display_columns(results: dict) -> list[tuple[str, str]]:
         cols.append(("risk", f"P(collision) per {results['manifest']['settings']['risk']['family']}"))
     if _has_string_stability(results):
         cols.append(("string_stability", "string stability (max gain)"))
+    if _has_iso15622(results):
+        from acc_gym.leaderboard.iso15622 import HEADER
+
+        cols.append(("iso15622", HEADER))
     return cols + [("episodes", "episodes"), ("wall_time_s", "time [s]")]
 
 
@@ -323,9 +354,7 @@ def text_table(results: dict) -> str:
     lines = ["  ".join(h.ljust(w) for h, w in zip(headers, widths)),
              "  ".join("-" * w for w in widths)]
     lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
-    lines += [UNCERTAINTY_NOTE, R157_NOTE]
-    if _has_string_stability(results):
-        lines += [string_stability_note(results)]
+    lines += [UNCERTAINTY_NOTE, R157_NOTE, *column_notes(results)]
     lines += [f"failed: {c['name']}: {c['reason']}" for c in results["controllers"] if c["status"] != "ok"]
     return "\n".join(lines)
 
@@ -344,7 +373,7 @@ def markdown(results: dict) -> str:
               f"episode that ended in a preventable collision (each suite weighs the same; equal figures share a "
               f"rank). acc_gym {m['versions']['acc_gym']}, {m['created']}."), "", UNCERTAINTY_NOTE + ".", "",
              R157_NOTE + ".", "",
-             *([string_stability_note(results) + ".", ""] if _has_string_stability(results) else []),
+             *(line for note in column_notes(results) for line in (note + ".", "")),
              "| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]
     lines += ["| " + " | ".join(esc(c) for c in r) + " |" for r in rows]
     failed = [c for c in results["controllers"] if c["status"] != "ok"]
@@ -356,7 +385,7 @@ def markdown(results: dict) -> str:
 def csv_text(results: dict) -> str:
     rows = table_rows(results)
     buf = io.StringIO()
-    nested = ("risk", "string_stability", "collisions_r157")  # as their numeric columns
+    nested = ("risk", "string_stability", "iso15622", "collisions_r157")  # as their numeric columns
     fields = [f for f in rows[0] if f not in nested] if rows else list(COLUMNS)
     writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
     writer.writeheader()

@@ -2,16 +2,19 @@
 
 Defaults, and why:
 
-* **suites**: all four (``carfollowing-v1``, ``malicious-v3``, ``ncap-v1``,
-  ``singlelane-v3``) -- the leaderboard is about behaviour in every kind of traffic, and
-  the four together (365 episodes, 1.7 simulated hours) take a built-in controller about
-  10 s in its process (7-14 s on the development machine), so the built-ins finish in
-  about a minute on two cores (56 s, report included). ``episodes=N`` caps
-  each suite at its first ``N`` episodes for quick runs (the manifest records the cap,
-  and the table says how many ran).
+* **suites**: all five (``carfollowing-v1``, ``malicious-v3``, ``ncap-v1``, ``ncap-v2``,
+  ``singlelane-v3``) -- the leaderboard is about behaviour in every kind of traffic; the
+  four before ``ncap-v2`` (365 episodes, 1.7 simulated hours) took a built-in controller
+  about 10 s in its process, and ``ncap-v2`` (Euro NCAP 2026's 57 points) adds a few
+  seconds each. ``episodes=N`` caps each suite at its first ``N`` episodes for quick runs
+  (the manifest records the cap, and the table says how many ran).
 * **split**: ``test`` (tune on ``dev``).
 * **controllers**: every registered name (:mod:`acc_gym.controllers`): the built-ins, the
   shipped trained policy and any installed package's controllers.
+* **columns**: string stability and ISO 15622 (the ``iso15622-v1`` battery's 30 episodes,
+  about 3-5 s more per controller; 50 s -> 64-71 s for the built-ins at ``episodes=2`` on
+  two cores) are measured for every controller; ``string_stability=False`` /
+  ``iso15622=False`` skip them. Neither changes points or ranks.
 * **workers**: 2 controllers at a time; **step budget** 1 s per ``predict`` call (a
   hand-written law takes microseconds, a small policy network about a millisecond);
   **total budget** 600 s per controller.
@@ -191,10 +194,17 @@ def _platoon_settings() -> dict:
                     f"1 + {TOLERANCE:g}"}
 
 
+def _iso15622_settings() -> dict:
+    from acc_gym.leaderboard.iso15622 import settings
+
+    return settings()
+
+
 def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=None, workers: int = DEFAULT_WORKERS,
                     step_budget: float = DEFAULT_STEP_BUDGET, budget: float = DEFAULT_BUDGET,
                     episodes: int | None = None, report: bool = True, progress=None, sandbox: str = "process",
-                    show=None, secret=None, risk: dict | None = None, string_stability: bool = True) -> dict:
+                    show=None, secret=None, risk: dict | None = None, string_stability: bool = True,
+                    iso15622: bool = True) -> dict:
     """Score ``controllers`` on ``suites`` (names; default all) and rank them; returns the results dict.
 
     ``out``: a directory to write results.json, results.csv, leaderboard.md, (with
@@ -215,6 +225,10 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     ``string_stability``: after its episodes, each controller's column of 8 copies is measured
     in the same sandbox (:func:`acc_gym.evaluation.string_stability.leaderboard_verdict`; a few
     seconds each); the verdict goes into each controller's ``string_stability`` and a column.
+    ``iso15622``: then each controller drives the ``iso15622-v1`` battery (30 episodes) in the same
+    sandbox and ISO 15622's envelope is checked on its drives (:mod:`acc_gym.leaderboard.iso15622`;
+    a few seconds each); the cell goes into each controller's ``iso15622`` and a column. Neither
+    column changes points or ranks.
     """
     from acc_gym.leaderboard.provenance import code_digest
     from acc_gym.suites import SPLITS, get_suite, list_suites
@@ -276,7 +290,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     try:
         outcomes = run_isolated(refs, jobs, workers=workers, step_budget=step_budget, budget=budget, traces=traces,
                                 progress=progress, log_dir=logs, uids=uids, sandbox=sandbox,
-                                platoon=bool(string_stability))
+                                platoon=bool(string_stability), iso15622=bool(iso15622))
     except BaseException:
         if staging is not None:
             shutil.rmtree(staging, ignore_errors=True)
@@ -303,7 +317,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                         "log": f"logs/{Path(o.log).name}" if staging is not None else o.log,
                         "summary": summarise_controller(o.episodes, names) if o.status == "ok" else None,
                         "episodes": o.episodes, **({"risk": risks.get(ref)} if risk is not None else {}),
-                        **({"string_stability": o.string_stability} if string_stability else {})})
+                        **({"string_stability": o.string_stability} if string_stability else {}),
+                        **({"iso15622": o.iso15622} if iso15622 else {})})
     ranking = rank(entries)
     manifest = {
         "format": "acc_gym.leaderboard/1", "created": created, "versions": versions(),
@@ -312,7 +327,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
         "secret_commitment": private_split.commitment(secret) if split == private_split.PRIVATE else None,
         "settings": {"workers": workers, "step_budget_s": step_budget, "budget_s": budget,
                      "start_method": START_METHOD, "in_flight": IN_FLIGHT, "risk": risk,
-                     "string_stability": _platoon_settings() if string_stability else None},
+                     "string_stability": _platoon_settings() if string_stability else None,
+                     "iso15622": _iso15622_settings() if iso15622 else None},
         "sandbox": sandbox_info, "ranking_rule": RANKING_RULE,
         "results_key_id": None if key is None else signature({}, key)["key_id"],
         "timings": {"total_wall_s": time.monotonic() - t0,

@@ -6,6 +6,10 @@ three seeds: following at 60 / 90 / 120 km/h (paper 003's test), a lead braking 
 to a slower target (CCRm at 50 km/h, and in traffic), a cut-in and a cut-out (paper 004's
 single-lane configurations). A battery is versioned: changing its cases makes a new
 version, so a report names what it ran.
+
+:func:`iso15622_report` runs a local controller through a battery; :func:`remote_iso15622_report`
+gives the same verdict for a controller reached through an ``exchange`` of observations and
+actions (the leaderboard's sandbox); both build the episodes with :func:`battery_cases`.
 """
 
 from __future__ import annotations
@@ -32,41 +36,126 @@ SEEDS = (0, 1, 2)
 ENV_ID = "acc_gym/SingleLane-v0"  # any scenario id runs in it; the -v0 observation every controller reads
 
 
+def battery_cases(battery: str = ISO15622_V1, seeds=SEEDS):
+    """The episodes of ``battery`` at ``seeds``, in the battery's order: a list of ``(name, seed, scenario)``
+    with the built :class:`~acc_gym.scenarios.spec.Scenario` (its parameters drawn from
+    ``numpy.random.default_rng([seed, 15622])`` with the case's fixed ones, the ``"typical"``
+    surroundings). Every way of running a battery (:func:`run_battery` with a local controller,
+    :func:`remote_iso15622_report` through an exchange) builds its scenarios here, so both drive
+    the same scenes. ``ValueError`` naming an unknown battery (before anything is built); a
+    scenario that cannot be built is the battery's fault, raised, not a controller's error."""
+    import numpy as np
+
+    from acc_gym.scenarios.registry import scenario_type
+
+    if battery not in BATTERIES:
+        raise ValueError(f"unknown battery {battery!r}; the batteries are {sorted(BATTERIES)}")
+    seeds = list(seeds)
+    cases = []
+    for label, sid, fixed in BATTERIES[battery]:
+        stype = scenario_type(sid)
+        for seed in seeds:
+            sc = stype.build(stype.sample_params(np.random.default_rng([seed, 15622]), fixed), seed, "typical")
+            cases.append((f"{label} (seed {seed})", seed, sc))
+    return cases
+
+
 def run_battery(controller, battery: str = ISO15622_V1, seeds=SEEDS, progress=None):
     """Drive ``controller`` (a name, ``module:attribute``, a saved model or an object) through
     ``battery``: returns ``(drives, errors, traces)`` -- an :class:`~acc_gym.standards.iso15622.Drive`
     per episode, ``(label, reason)`` for each episode the controller failed (the rest still
     run), and the recorded world traces by label (for plots)."""
     import gymnasium as gym
-    import numpy as np
 
     import acc_gym  # noqa: F401  (registers the ids)
     from acc_gym.evaluation.runner import load_controller, run_episode
     from acc_gym.evaluation.trace import EgoTrace
-    from acc_gym.scenarios.registry import scenario_type
 
-    if battery not in BATTERIES:
-        raise ValueError(f"unknown battery {battery!r}; the batteries are {sorted(BATTERIES)}")
+    cases = battery_cases(battery, seeds)
     policy = load_controller(controller)
     env = gym.make(ENV_ID)
     drives, errors, traces = [], [], {}
-    for label, sid, fixed in BATTERIES[battery]:
-        stype = scenario_type(sid)
-        for seed in seeds:
-            name = f"{label} (seed {seed})"
-            try:
-                sc = stype.build(stype.sample_params(np.random.default_rng([seed, 15622]), fixed), seed, "typical")
-                _, trace = run_episode(env, policy, seed=seed, scenario=sc)
-            except Exception as exc:  # noqa: BLE001  (the controller's failure is a result, not a crash)
-                text = str(exc).splitlines()[0] if str(exc) else ""
-                errors.append((name, f"{type(exc).__name__}: {text}"))
-                continue
-            drives.append(iso15622.Drive.from_trace(name, EgoTrace.from_world(trace, 0, sc)))
-            traces[name] = trace
-            if progress is not None:
-                progress(name)
+    for name, seed, sc in cases:
+        try:
+            _, trace = run_episode(env, policy, seed=seed, scenario=sc)
+        except Exception as exc:  # noqa: BLE001  (the controller's failure is a result, not a crash)
+            text = str(exc).splitlines()[0] if str(exc) else ""
+            errors.append((name, f"{type(exc).__name__}: {text}"))
+            continue
+        drives.append(iso15622.Drive.from_trace(name, EgoTrace.from_world(trace, 0, sc)))
+        traces[name] = trace
+        if progress is not None:
+            progress(name)
     env.close()
     return drives, errors, traces
+
+
+def remote_iso15622_report(exchange, time_gap: float | None = None, battery: str = ISO15622_V1, seeds=SEEDS,
+                           limits=None, first_slot: int = 0) -> iso15622.Report:
+    """ISO 15622's requirements over ``battery`` for a controller that lives elsewhere (the
+    leaderboard's sandbox): the same verdict :func:`iso15622_report` gives for the same
+    controller run locally.
+
+    ``exchange(obs, starts, slots) -> actions`` is one round trip: ``obs`` ``(n, d)`` float64
+    observation rows, ``starts`` ``(n,)`` bool (the row's episode starts: its copy of the
+    controller is ``reset()``), ``slots`` ``(n,)`` int (which copy answers the row), one action per
+    row back -- the shape :func:`acc_gym.evaluation.string_stability.remote_actors` and the
+    leaderboard's ``_exchange`` use. ``time_gap``: the controller's declared time gap [s] (None:
+    none), as :func:`~acc_gym.evaluation.runner.run_episode` passes a local controller's.
+
+    Decisions: every episode of the battery (30 for ``iso15622-v1`` at the three seeds) runs at
+    once, each in its own slot (``first_slot + its index in`` :func:`battery_cases`), in lockstep:
+    one round trip per step carries a row for every episode still running, so the battery costs
+    as many round trips as its longest episode has steps. Each episode is an
+    :class:`~acc_gym.evaluation.runner.EpisodeRun` of its own ``ENV_ID`` env stepped with
+    ``record=True``; a finished one is turned into a :class:`~acc_gym.standards.iso15622.Drive` here,
+    and the drives (in the battery's order, as :func:`run_battery` lists them) are checked here:
+    whoever calls this owns the simulation and the verdict, ``exchange`` only ever carries
+    observations out and actions in. A controller's failure is whatever ``exchange`` raises: it
+    ends the run (a remote controller's process does not survive its own error, so there are no
+    per-episode errors as :func:`run_battery` has). Answers are checked: not one finite number per
+    row is a ``ValueError`` naming the count or the value; a finite action is clipped to [-1, 1] and
+    rounded to float32 as :func:`~acc_gym.evaluation.runner.as_action` does."""
+    import gymnasium as gym
+    import numpy as np
+
+    import acc_gym  # noqa: F401  (registers the ids)
+    from acc_gym.evaluation.runner import EpisodeRun
+    from acc_gym.evaluation.trace import EgoTrace
+
+    if isinstance(first_slot, bool) or not isinstance(first_slot, (int, np.integer)) or first_slot < 0:
+        raise ValueError(f"first_slot must be a non-negative integer, got {first_slot!r}")
+    cases = battery_cases(battery, seeds)
+    envs, runs = [], {}
+    drives: dict[int, iso15622.Drive] = {}
+    try:
+        for k, (_, seed, sc) in enumerate(cases):
+            envs.append(gym.make(ENV_ID))
+            runs[k] = EpisodeRun(envs[-1], seed=seed, scenario=sc, record=True, time_gap=time_gap)
+        starts = np.ones(len(cases), dtype=bool)
+        while runs:
+            ks = sorted(runs)
+            obs = np.stack([np.asarray(runs[k].obs, dtype=float) for k in ks])
+            raw = np.asarray(exchange(obs, starts[ks], first_slot + np.asarray(ks)))
+            starts[:] = False
+            if raw.dtype.kind not in "fiu" or raw.size != len(ks):
+                raise ValueError(f"the controller answered {len(ks)} observations with {raw.size} values "
+                                 f"({raw.dtype}); expected {len(ks)} numbers")
+            actions = raw.astype(np.float64).reshape(-1)
+            bad = ~np.isfinite(actions)
+            if bad.any():
+                i = int(np.argmax(bad))
+                raise ValueError(f"the controller returned an action that is not finite: {float(actions[i])!r} (in "
+                                 f"{cases[ks[i]][0]})")
+            actions = np.clip(actions, -1.0, 1.0).astype(np.float32)
+            for k, a in zip(ks, actions):
+                if runs[k].step(np.array([a], dtype=np.float32)):
+                    name, _, sc = cases[k]
+                    drives[k] = iso15622.Drive.from_trace(name, EgoTrace.from_world(runs.pop(k).trace(), 0, sc))
+    finally:
+        for env in envs:
+            env.close()
+    return iso15622.check_drives([drives[k] for k in sorted(drives)], limits)
 
 
 def iso15622_report(controller, battery: str = ISO15622_V1, seeds=SEEDS, limits=None) -> iso15622.Report:

@@ -128,3 +128,18 @@ class FailsInAColumn:
         if o.ndim == 2 and o.shape[0] > 1:
             raise RuntimeError("deliberate failure on a batch")
         return self.law.predict(obs, deterministic=deterministic)
+
+
+class FailsAtSpeed:
+    """The linear ACC that raises once its speed passes 20 m/s: fine in ncap-v1's first test
+    episodes (slow CCRs approaches), fails in the ISO 15622 battery (following at 90 and 120 km/h)."""
+
+    def __init__(self):
+        from acc_gym_agents.controllers.linear import LinearACC
+
+        self.law = LinearACC()
+
+    def predict(self, obs, deterministic=True):
+        if obs[0] > 20.0:
+            raise RuntimeError("too fast for me")
+        return self.law.predict(obs, deterministic=deterministic)
