@@ -407,7 +407,10 @@ def _print_summary(controller: str, env_id: str, s: dict) -> None:
 def _add_leaderboard_parser(sub) -> None:
     from acc_gym.leaderboard.run import DEFAULT_BUDGET, DEFAULT_STEP_BUDGET, DEFAULT_WORKERS
 
-    p = sub.add_parser("leaderboard", help="score controllers on versioned suites and rank them")
+    from acc_gym.leaderboard.results import RANKING_RULE
+
+    p = sub.add_parser("leaderboard", help="score controllers on versioned suites and rank them",
+                       description=f"Score controllers on versioned suites and rank them. Ranking: {RANKING_RULE}.")
     p.add_argument("--suite", action="append", default=None,
                    help="a suite (carfollowing-v1, malicious-v3, ncap-v1, ncap-v2, singlelane-v3); repeat or "
                         "comma-separate for several (default: all of them)")

@@ -369,9 +369,8 @@ def markdown(results: dict) -> str:
         return s.replace("|", "\\|")
 
     lines = ["# acc_gym leaderboard", "",
-             (f"Split `{m['split']}` of {suites}; ranked by mean points: paper 003's 100-point score, 0 for an "
-              f"episode that ended in a preventable collision (each suite weighs the same; equal figures share a "
-              f"rank). acc_gym {m['versions']['acc_gym']}, {m['created']}."), "", UNCERTAINTY_NOTE + ".", "",
+             (f"Split `{m['split']}` of {suites}. Ranking: {RANKING_RULE}. acc_gym {m['versions']['acc_gym']}, "
+              f"{m['created']}."), "", UNCERTAINTY_NOTE + ".", "",
              R157_NOTE + ".", "",
              *(line for note in column_notes(results) for line in (note + ".", "")),
              "| " + " | ".join(headers) + " |", "|" + "|".join("---" for _ in headers) + "|"]

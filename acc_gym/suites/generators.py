@@ -86,17 +86,23 @@ def singlelane(index: int, rng: np.random.Generator) -> Scenario:
 
 def ncap_params(scenario_id: str, rng: np.random.Generator) -> dict:
     """The catalogue test's parameters with test-track deviations (see the module docstring)."""
+    p, kind = _track_deviations(scenario_id, scenario_id.split("/")[1], rng)
+    if kind != "ccrb":
+        p["gap"] = TTC0 * (p["v_ego"] - p["v_target"]) / 3.6
+    return p
+
+
+def _track_deviations(scenario_id: str, kind: str, rng: np.random.Generator) -> tuple[dict, str]:
+    """The test's constant parameters with the speed deviations (and CCRb's gap and deceleration
+    ones) every NCAP suite draws, in this order: ``(params, kind)``."""
     p = dict(build(scenario_id, seed=0).params)  # every NCAP parameter is a constant law
-    kind = scenario_id.split("/")[1]
     p["v_ego"] += float(rng.uniform(0.0, 1.0))
     if p["v_target"] > 0:
         p["v_target"] += float(rng.uniform(-1.0, 1.0))
     if kind == "ccrb":
         p["gap"] += float(rng.uniform(-0.5, 0.5))
         p["decel"] += float(rng.uniform(-0.25, 0.25))
-    else:
-        p["gap"] = TTC0 * (p["v_ego"] - p["v_target"]) / 3.6
-    return p
+    return p, kind
 
 
 def _ncap(scenario_id: str, rng: np.random.Generator) -> Scenario:
@@ -126,20 +132,11 @@ def ncap2026_params(scenario_id: str, rng: np.random.Generator) -> dict:
     """The 2026 test point's parameters with test-track deviations (see the module docstring)."""
     from acc_gym.scenarios.ncap2026 import ACC_START_GAP, FC_TTC0
 
-    p = dict(build(scenario_id, seed=0).params)  # every parameter is a constant law
-    kind = scenario_id.split("/")[2]
-    p["v_ego"] += float(rng.uniform(0.0, 1.0))
-    if p["v_target"] > 0:
-        p["v_target"] += float(rng.uniform(-1.0, 1.0))
-    if kind == "ccrb":
-        p["gap"] += float(rng.uniform(-0.5, 0.5))
-        p["decel"] += float(rng.uniform(-0.25, 0.25))
-    elif kind in ("cut-in", "cut-out"):
+    p, kind = _track_deviations(scenario_id, scenario_id.split("/")[2], rng)
+    if kind in ("cut-in", "cut-out"):
         p["ttc"] = max(p["ttc"] + float(rng.uniform(-0.1, 0.1)), 0.0)
-    elif "/fc/" in scenario_id:
-        p["gap"] = FC_TTC0 * (p["v_ego"] - p["v_target"]) / 3.6
-    else:
-        p["gap"] = ACC_START_GAP
+    elif kind != "ccrb":  # an approach starts again at its nominal distance
+        p["gap"] = FC_TTC0 * (p["v_ego"] - p["v_target"]) / 3.6 if "/fc/" in scenario_id else ACC_START_GAP
     return p
 
 

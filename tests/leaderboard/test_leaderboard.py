@@ -70,7 +70,16 @@ def test_cli_prints_the_ranking_and_writes_four_files(cli_run):
 
     from acc_gym.leaderboard.results import RANKING_RULE
 
-    assert escape(RANKING_RULE) in html and "0 for an episode that ended in a preventable collision" in md
+    assert escape(RANKING_RULE) in html and RANKING_RULE in md
+
+
+def test_the_help_states_the_ranking_rule_the_code_applies(capsys):
+    from acc_gym.cli import main
+    from acc_gym.leaderboard.results import RANKING_RULE
+
+    with pytest.raises(SystemExit):
+        main(["leaderboard", "--help"])
+    assert "".join(RANKING_RULE.split()) in "".join(capsys.readouterr().out.split())  # argparse rewraps it
 
 
 def test_results_manifest_and_ranking(cli_run):

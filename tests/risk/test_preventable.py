@@ -16,23 +16,13 @@ from acc_gym.risk.episodes import RiskChunk, draw_episodes, run_chunk
 from acc_gym.risk.proposal import Proposal, tilted_keys
 from acc_gym.risk.run import env_for
 from acc_gym.scenarios.registry import scenario_type
+from hold import Hold  # noqa: E402  (tests/risk/hold.py)
 
 HERE = Path(__file__).resolve().parent
 SID = "singlelane/2/cut-in"
 PREVENTABLE = {"gap": 10.0, "v_rel": -4.0}
 UNAVOIDABLE = {"gap": 10.0, "v_rel": -8.0}
 CRUDE = dict(method="crude", budget=64, round_size=64)
-
-
-class Hold:
-    """Never brakes: action 0 (no acceleration asked) whatever it sees."""
-
-    vectorised = True
-
-    def predict(self, obs, deterministic=True):
-        o = np.atleast_2d(np.asarray(obs, dtype=float))
-        act = np.zeros((o.shape[0], 1), dtype=np.float32)
-        return (act[0] if np.ndim(obs) == 1 else act), None
 
 
 def test_every_collision_preventable_gives_one_exactly():

@@ -10,6 +10,7 @@ from acc_gym.risk import run as risk_run
 from acc_gym.risk.episodes import RiskChunk, run_chunk
 from acc_gym.risk.proposal import Proposal
 from acc_gym.scenarios.registry import scenario_type
+from hold import Hold  # noqa: E402  (tests/risk/hold.py)
 
 
 class Ram:
@@ -27,17 +28,6 @@ class RamOneByOne(Ram):
     """The same law, without ``vectorised``: run as one copy per episode."""
 
     vectorised = False
-
-
-class Hold:
-    """A constant controller: action 0 (no acceleration asked) whatever it sees."""
-
-    vectorised = True
-
-    def predict(self, obs, deterministic=True):
-        o = np.atleast_2d(np.asarray(obs, dtype=float))
-        act = np.zeros((o.shape[0], 1), dtype=np.float32)
-        return (act[0] if np.ndim(obs) == 1 else act), None
 
 
 @pytest.mark.parametrize("controller", [Hold(), Ram()], ids=["constant", "ram"])
