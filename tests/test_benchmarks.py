@@ -80,7 +80,9 @@ def test_reproducibility_json_keys():
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "reproducibility.py"), "--json", "--per-suite", "2",
                         "--trials", "1"], capture_output=True, text=True, check=True, cwd=ROOT)
     out = json.loads(r.stdout)
-    assert out["episodes"] == 8 and out["trials"] == 1 and out["controller"] == "acc"
+    from acc_gym.suites import list_suites
+
+    assert out["episodes"] == 2 * len(list_suites()) and out["trials"] == 1 and out["controller"] == "acc"
     assert 0.0 <= out["median_score_change"] <= out["max_score_change"] <= out["score_tolerance"]
     assert out["verdicts_changed"] == 0 and out["max_speed_change"] < 1e-6
 
