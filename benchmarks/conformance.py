@@ -17,7 +17,8 @@ import json
 
 from acc_gym.standards.conformance import conformance, to_json
 
-CONTROLLERS = ("acc", "cacc", "idm", "gipps", "gm", "fuzzy", "mpc", "constant", "ppo-acc", "ppo", "cc-driver")
+CONTROLLERS = ("acc", "cacc", "idm", "gipps", "gm", "fuzzy", "mpc", "constant", "ppo-acc", "ppo", "cc-driver",
+               "fsm-driver")
 SHORT = {"mean automatic deceleration over 2 s": "decel. 2 s [m/s^2]", "mean jerk over 1 s": "jerk 1 s [m/s^3]",
          "mean automatic acceleration over 2 s": "accel. 2 s [m/s^2]", "steady-state time gap": "time gap [s]",
          "standstill gap behind a stopped target": "standstill gap [m]",

@@ -18,7 +18,8 @@ from acc_gym.evaluation.runner import load_controller
 
 ROOT = Path(__file__).resolve().parents[1]
 CLI = [sys.executable, "-c", "import sys; from acc_gym.cli import main; sys.exit(main(sys.argv[1:]))"]
-BUILTINS = ["acc", "cacc", "cc-driver", "constant", "fuzzy", "gipps", "gm", "idm", "mp-cacc", "mpc", "ppo", "ppo-acc"]
+BUILTINS = ["acc", "cacc", "cc-driver", "constant", "fsm-driver", "fuzzy", "gipps", "gm", "idm", "mp-cacc", "mpc", "ppo",
+            "ppo-acc"]
 
 
 def imported_top_levels(path: Path) -> set[str]:

@@ -32,11 +32,15 @@ from acc_gym.standards import battery as batteries
 from acc_gym.standards import iso15622
 
 STANDARDS = ("iso15622", "r157", "ncap")
+R157_REFERENCES = ("cc-driver", "fsm-driver")
 
 
-def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name: str | None = None) -> dict:
+def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name: str | None = None,
+                r157_reference: str = "cc-driver") -> dict:
     """The verdicts of ``controller`` by each of ``standards`` (JSON-safe), and the drives for plots
-    under the key ``"_drives"`` (dropped by :func:`to_json`)."""
+    under the key ``"_drives"`` (dropped by :func:`to_json`). ``r157_reference``: R157's reference
+    driver, ``cc-driver`` (the careful and competent driver) or ``fsm-driver`` (the JRC's Fuzzy
+    Safety Model); the cases' ``cc_driver_collides`` key holds the reference's outcome either way."""
     standards = list(standards)
     unknown = [s for s in standards if s not in STANDARDS]
     if unknown or not standards:
@@ -53,7 +57,9 @@ def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name
     if "r157" in standards:
         from acc_gym.standards.r157 import r157_cases
 
-        out["standards"]["r157"] = r157_cases(controller)
+        if r157_reference not in R157_REFERENCES:
+            raise ValueError(f"unknown R157 reference {r157_reference!r}; choose from {list(R157_REFERENCES)}")
+        out["standards"]["r157"] = r157_cases(controller, reference=r157_reference)
     if "ncap" in standards:
         from acc_gym.standards.ncap import ncap_report
 
@@ -95,13 +101,15 @@ def markdown(result: dict) -> str:
         n = len(r157["cases"])
         families = list(dict.fromkeys(c["family"] for c in r157["cases"]))  # in the grid's order
         grids = (", ".join(families[:-1]) + " and " + families[-1]) if len(families) > 1 else "".join(families)
-        lines += [f"## UN R157: preventability against the careful and competent driver (`{r157['reference']}`)", "",
+        ref = r157["reference"]
+        who = {"cc-driver": "the careful and competent driver", "fsm-driver": "the Fuzzy Safety Model"}.get(ref, ref)
+        lines += [f"## UN R157: preventability against {who} (`{ref}`)", "",
                   f"{n} cases{f' ({grids} grids)' if families else ''}: **{r157['preventable_collisions']} preventable** "
-                  f"collisions (the C&C driver avoids them), {r157['non_preventable_collisions']} non-preventable "
+                  f"collisions (`{ref}` avoids them), {r157['non_preventable_collisions']} non-preventable "
                   f"(it collides too).", ""]
         hit = [c for c in r157["cases"] if c["controller_collides"]]
         if hit:
-            lines += ["| family | parameters | C&C driver collides | preventable |", "|---|---|---|---|"]
+            lines += [f"| family | parameters | `{ref}` collides | preventable |", "|---|---|---|---|"]
             for c in hit:
                 params = ", ".join(f"{k} {v:g}" for k, v in c["params"].items())
                 lines.append(f"| {c['family']} | {params} | {'yes' if c['cc_driver_collides'] else 'no'} | "
@@ -257,6 +265,9 @@ def add_parser(sub) -> None:
     p.add_argument("--standard", default="all", help=f"one of {', '.join(STANDARDS)} or all (default all)")
     p.add_argument("--seeds", type=int, nargs="+", default=list(batteries.SEEDS),
                    help="the battery's seeds (default 0 1 2)")
+    p.add_argument("--r157-reference", default="cc-driver", choices=R157_REFERENCES,
+                   help="R157's reference driver: cc-driver (the careful and competent driver, default) or "
+                        "fsm-driver (the JRC's Fuzzy Safety Model)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--out", default=None, metavar="DIR", help="write conformance.json, .md, .html and envelope.png")
 
@@ -264,7 +275,8 @@ def add_parser(sub) -> None:
 def run(args, parser) -> int:
     standards = list(STANDARDS) if args.standard == "all" else [s.strip() for s in args.standard.split(",")]
     try:
-        result = conformance(args.controller, standards, tuple(args.seeds), name=args.controller)
+        result = conformance(args.controller, standards, tuple(args.seeds), name=args.controller,
+                             r157_reference=args.r157_reference)
     except (ValueError, TypeError) as exc:
         parser.error(str(exc))
     files = write_reports(result, args.out) if args.out else None

@@ -56,6 +56,20 @@ _FIELDS = ("speed", "acceleration", "gap", "relative speed", "in-range flag", "s
            "lead acceleration (V2V)", "gap2", "relative speed 2", "in-range flag 2")
 
 
+def check_rows(o: np.ndarray, who: str) -> None:
+    """Observation rows ``(n, 7 | 11 | 13 | 23)`` of finite numbers, else a ValueError naming ``who``,
+    the field and the row."""
+    if o.ndim != 2 or o.shape[1] not in WIDTHS:
+        got = f"{o.shape[1]} fields" if o.ndim == 2 else f"an array of shape {o.shape}"
+        raise ValueError(f"{who}: an observation has {', '.join(map(str, WIDTHS))} fields, got {got}")
+    bad = ~np.isfinite(o)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        what = _FIELDS[j] if j < (11 if o.shape[1] in _V2V else 7) else "safety-margin feature"
+        kind = "NaN" if np.isnan(o[i, j]) else f"not finite ({o[i, j]})"
+        raise ValueError(f"{who}: observation field {j} ({what}) is {kind} in row {i}")
+
+
 def r157_cut_in_must_avoid(ttc_at_intrusion, v_rel):
     """R157's cut-in rule: a collision must be avoided when the time to collision at the
     lane intrusion [s] exceeds ``v_rel / (2 * 6 m/s^2) + 0.35 s``, ``v_rel`` the closing speed
@@ -167,20 +181,8 @@ class CCDriver(_Policy):
                 self._init(self._n, starts)
         return super().predict(obs, state, episode_start, deterministic)
 
-    @staticmethod
-    def _check(o: np.ndarray) -> None:
-        if o.ndim != 2 or o.shape[1] not in WIDTHS:
-            got = f"{o.shape[1]} fields" if o.ndim == 2 else f"an array of shape {o.shape}"
-            raise ValueError(f"cc-driver: an observation has {', '.join(map(str, WIDTHS))} fields, got {got}")
-        bad = ~np.isfinite(o)
-        if bad.any():
-            i, j = np.argwhere(bad)[0]
-            what = _FIELDS[j] if j < (11 if o.shape[1] in _V2V else 7) else "safety-margin feature"
-            kind = "NaN" if np.isnan(o[i, j]) else f"not finite ({o[i, j]})"
-            raise ValueError(f"cc-driver: observation field {j} ({what}) is {kind} in row {i}")
-
     def _accel(self, o: np.ndarray) -> np.ndarray:
-        self._check(o)
+        check_rows(o, "cc-driver")
         n, dt = o.shape[0], self.dt
         if self._n != n:
             self._init(n)
