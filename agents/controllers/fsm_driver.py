@@ -19,7 +19,10 @@ ahead with two fuzzy metrics in [0, 1]:
   ``b_max``: 0 above, 1 below, linear between.
 
 The driver: the linear ACC law (:class:`LinearACC`) while both metrics are 0 -- our decision
-[R], as for ``cc-driver``: the model specifies only the response. When either turns positive an
+[R], as for ``cc-driver``: the model specifies only the response -- with its gap target
+raised to at least PFS's safe distance at equal speeds plus ``FOLLOW_BUFFER`` (1 m), so that
+steady following is not inside the model's own unsafe zone (with the plain ACC law, 32.5 m at
+20 m/s against PFS's 40.4 m, it cycled around the PFS boundary and had no steady state). When either turns positive an
 event starts: for ``reaction_time`` it commands 0 m/s^2 (it keeps its speed, as the JRC's
 implementation does), then it brakes towards ``cfs (b_max - b_comf) + b_comf`` when CFS > 0,
 else ``pfs b_comf``, its deceleration rising at most ``jerk`` per second, never above
@@ -56,6 +59,7 @@ MARGIN = 2.0               # [m]      [S]  FSM_margin_dist: taken off the gap (P
 SAFE_MARGIN = 2.0          # [m]      [S]  FSM_margin_safe_dist: added to PFS's safe distance
 BRAKE_DECEL = 0.774 * G    # [m/s^2]  [S]  FSM_max_deceleration, 7.59
 JERK = 12.65               # [m/s^3]  [S]  CC_min_jerk: the braking's rise
+FOLLOW_BUFFER = 1.0        # [m]      [R]  normal following keeps this beyond PFS's safe distance
 
 
 def pfs(gap, v, v_lead, reaction_time=REACTION_TIME, comfort_decel=COMFORT_DECEL,
@@ -141,6 +145,19 @@ class FSMDriver(_Policy):
         c = cfs(gap, v, v_lead, a, self.reaction_time, self.comfort_decel, self.max_fuzzy_decel)
         return np.where(seen, p, 0.0), np.where(seen, c, 0.0)
 
+    def following(self, o: np.ndarray) -> np.ndarray:
+        """Normal driving [m/s^2]: the linear ACC law with its gap target ``s0 + h v`` raised to PFS's
+        safe distance at equal speeds (``v rt + v^2 / (2 b_comf) - v^2 / (2 b_lead) + safe_margin +
+        margin``) plus ``FOLLOW_BUFFER`` where that is longer (the gap it sees is shortened by the
+        difference)."""
+        v, h = o[:, 0], o[:, 6]
+        pfs_safe = (v * self.reaction_time + v ** 2 / (2.0 * self.comfort_decel) - v ** 2 / (2.0 * self.lead_decel)
+                    + self.safe_margin + self.margin)
+        extra = np.maximum(pfs_safe + FOLLOW_BUFFER - (self.follow.s0 + h * v), 0.0)
+        shifted = o.copy()
+        shifted[:, 2] = o[:, 2] - extra
+        return self.follow._accel(shifted)
+
     def _accel(self, o: np.ndarray) -> np.ndarray:
         check_rows(o, "fsm-driver")
         n = o.shape[0]
@@ -156,7 +173,7 @@ class FSMDriver(_Policy):
         rise = np.minimum(self.decel + self.jerk * self.dt, self.brake_decel)
         self.decel = np.where(braking, np.minimum(rise, target), 0.0)
         self.react = np.where(reacting, self.react - self.dt, self.react)
-        a = np.where(braking, -self.decel, np.where(reacting, 0.0, self.follow._accel(o)))
+        a = np.where(braking, -self.decel, np.where(reacting, 0.0, self.following(o)))
         return np.clip(a, -self.decel_max, self.accel_max)
 
 

@@ -31,7 +31,7 @@ def obs(gap, v=20.0, v_lead=10.0, a=0.0, seen=1.0):
 
 def test_the_phases_step_by_step():
     d = FSMDriver()
-    follow = d.follow._accel(obs(80.0)[None])[0]
+    follow = d.following(obs(80.0)[None])[0]
     assert d._accel(obs(80.0)[None])[0] == pytest.approx(follow)  # safe: the linear ACC law
     risky = obs(12.0)  # CFS = 1: target 6 m/s^2
     got = [d._accel(risky[None])[0] for _ in range(8)]
@@ -86,3 +86,21 @@ def test_conformance_takes_the_fsm_as_reference(capsys):
     r157 = json.loads(capsys.readouterr().out)["standards"]["r157"]
     assert r157["reference"] == "fsm-driver" and r157["preventable_collisions"] == 0
     assert all(c["preventable"] is False for c in r157["cases"] if c["controller_collides"])
+
+
+def test_steady_following_stays_outside_its_own_unsafe_zone():
+    """Normal driving keeps at least PFS's safe distance (+1 m): at that gap behind a lead at its own
+    speed both metrics are 0 and the law asks for no acceleration, and in a column behind a constant
+    lead it reaches a steady state (with the plain ACC law it cycled around the PFS boundary)."""
+    from acc_gym.evaluation.string_stability import PlatoonConfig, string_stability
+
+    d = FSMDriver()
+    for v in (10.0, 20.0, 30.0):
+        steady = 2.0 + v * 0.75 + v ** 2 / 8 - v ** 2 / 14 + 2.0 + 1.0  # [m] the gap its law aims at
+        o = obs(steady, v=v, v_lead=v)
+        o[5] = v  # set speed: no cruise pull
+        p, c = d.metrics(o[None])
+        assert p[0] == 0.0 and c[0] == 0.0
+        assert d.following(o[None])[0] == pytest.approx(0.0, abs=1e-9)
+    report = string_stability("fsm-driver", PlatoonConfig(vehicles=3), frequencies=(0.02,), disturbance=False)
+    assert report.max_gain > 0
