@@ -12,8 +12,17 @@ key (``_steps_per_s``)    case
 ``env_idm``               the same with ``drivers="idm"`` (IDM surrounding drivers)
 ``env_carfollowing``      ``acc_gym/CarFollowing-v0``
 ``env_ncap``              ``acc_gym/NCAP-v0``
+``env_v1``                ``acc_gym/SingleLane-v1`` (the same draws as ``env``, with the
+                          safety-margin features and MarginReward)
+``env_v1_idm``            the same with ``drivers="idm"``
+``env_v1_carfollowing``   ``acc_gym/CarFollowing-v1`` (its training mixture, naturalistic drivers)
+``env_v1_ncap``           ``acc_gym/NCAP-v1``
+``env_v1_counter``        ``env_v1`` and ``env_v1_idm`` with ``scenario_generator="counter"``
+``env_v1_idm_counter``    (the counter-based, batched scenario generator; opt-in cases,
+                          not in the default ``--cases``)
 ``vector_env``            ``acc_gym/SingleLane-v0``, 256 envs; likewise
-                          ``vector_env_idm``, ``vector_env_carfollowing``, ``vector_env_ncap``
+                          ``vector_env_idm``, ``vector_env_carfollowing``, ``vector_env_ncap``,
+                          ``vector_env_v1``, ``vector_env_v1_idm``, ...
 ========================  ======================================================
 
 Each figure is the median of ``--repeats`` timed runs after a warm-up (numba kernels
@@ -33,7 +42,9 @@ env_idm``).
 IDM followers, an ego whose speed is set and read every step, 0.2 s steps, one reload per
 200-step episode; :mod:`sumo_peer`), alternating with ``env_idm`` in the same run, as
 ``sumo_steps_per_s``, and ``sumo_ratio`` = ``env_idm_steps_per_s / sumo_steps_per_s``
-(above 1: acc_gym is faster). It needs ``pip install ".[bench]"`` (libsumo).
+(above 1: acc_gym is faster), and ``sumo_ratio_v1`` = ``env_v1_idm_steps_per_s /
+sumo_steps_per_s`` (``env_v1_idm`` is timed in the same alternation; the same SUMO runs
+are the denominator of both). It needs ``pip install ".[bench]"`` (libsumo).
 
 ``--peers`` also times the core column API against ``cavsandbox`` (a pure-Python peer,
 ``pip install cavsandbox``, imported as ``cacc_sim``) on the same work: a lead on a speed
@@ -76,7 +87,16 @@ CASES = {  # key prefix -> (id, settings)
     "env_idm": ("acc_gym/SingleLane-v0", {"drivers": "idm"}),
     "env_carfollowing": ("acc_gym/CarFollowing-v0", {}),
     "env_ncap": ("acc_gym/NCAP-v0", {}),
+    "env_v1": ("acc_gym/SingleLane-v1", {}),
+    "env_v1_idm": ("acc_gym/SingleLane-v1", {"drivers": "idm"}),
+    "env_v1_carfollowing": ("acc_gym/CarFollowing-v1", {}),
+    "env_v1_ncap": ("acc_gym/NCAP-v1", {}),
+    # opt-in: the counter-based, batched scenario generator (acc_gym.scenarios.batched)
+    "env_v1_counter": ("acc_gym/SingleLane-v1", {"scenario_generator": "counter"}),
+    "env_v1_idm_counter": ("acc_gym/SingleLane-v1", {"drivers": "idm", "scenario_generator": "counter"}),
 }
+DEFAULT_CASES = [case for case in CASES if not case.endswith("_counter")]
+PEER_CASES = ("env_idm", "env_v1_idm")  # the cases SUMO's work equals (--peers adds them)
 
 
 def single_env_rate(steps: int, seed: int, env_id: str = "acc_gym/SingleLane-v0", **settings) -> float:
@@ -257,7 +277,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--vector-steps", type=int, default=200, help="vector-env steps per timed run")
     parser.add_argument("--num-envs", type=int, default=256)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES),
+    parser.add_argument("--cases", nargs="+", default=list(DEFAULT_CASES), choices=list(CASES),
                         help="which ids to time (each single and as a vector env)")
     parser.add_argument("--parallel", action="store_true", help="also time the vector env with threaded MPC drivers")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
@@ -286,8 +306,7 @@ def main(argv=None) -> dict:
 
         if not sumo_peer.available():
             parser.error("--peers needs libsumo: pip install '.[bench]'")
-        if "env_idm" not in args.cases:
-            args.cases.append("env_idm")
+        args.cases += [case for case in PEER_CASES if case not in args.cases]
         sumo_peer.rate(400)  # warm-up
         column_rate()  # warm-up: the column kernels compiled or loaded from numba's cache
         cavsandbox_missing = cavsandbox_available()
@@ -316,6 +335,7 @@ def main(argv=None) -> dict:
         _median(out, key, values)
     if args.peers:
         out["sumo_ratio"] = out["env_idm_steps_per_s"] / out["sumo_steps_per_s"]
+        out["sumo_ratio_v1"] = out["env_v1_idm_steps_per_s"] / out["sumo_steps_per_s"]
         out["column_ratio_cavsandbox"] = None
         if cavsandbox_missing is None:
             out["column_ratio_cavsandbox"] = (out["column_vehicle_steps_per_s"]
@@ -347,7 +367,8 @@ def main(argv=None) -> dict:
                 unit = "vehicle-steps/s" if "vehicle_steps" in key else "steps/s"
                 print(f"{key:42s} {value:>12,.0f} {unit}  (runs {out[key + '_runs']})")
         if "sumo_ratio" in out:
-            print(f"acc_gym (IDM drivers) / SUMO (libsumo): {out['sumo_ratio']:.2f}x")
+            print(f"acc_gym (IDM drivers) / SUMO (libsumo): {out['sumo_ratio']:.2f}x "
+                  f"(SingleLane-v1: {out['sumo_ratio_v1']:.2f}x)")
         if "column_ratio_cavsandbox" in out:
             ratio = out["column_ratio_cavsandbox"]
             print(f"simulate_column (lead + {COLUMN_FOLLOWERS} IDM) / cavsandbox, vehicle-steps/s: "

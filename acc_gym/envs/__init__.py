@@ -13,7 +13,8 @@ from acc_gym.envs.registration import ENV_IDS, register_envs
 register_envs()
 
 _LAZY = {"ACCEnv": "acc_gym.envs.acc_env", "ACCVectorEnv": "acc_gym.envs.vector", "EnvConfig": "acc_gym.envs.config",
-         "ScenarioSampler": "acc_gym.envs.config", "CriteriaReward": "acc_gym.envs.reward",
+         "ScenarioSampler": "acc_gym.envs.config", "CounterScenarioSampler": "acc_gym.envs.config",
+         "CriteriaReward": "acc_gym.envs.reward",
          "MarginReward": "acc_gym.envs.reward",
          "StepIndicators": "acc_gym.envs.reward"}
 

@@ -19,6 +19,7 @@ import numba
 import numpy as np
 
 from acc_gym.evaluation.scoring import SPEED_TOL
+from acc_gym.envs import observation as _O
 from acc_gym.simulation import _world_kernel as _W
 
 # rows of criteria()'s float output
@@ -30,6 +31,8 @@ B_HAS, B_IN_BAND, B_FOLLOWING, B_FREE, B_VIOLATION, B_COLLISION, B_FOLLOWABLE = 
 N_BOOL = 7
 # the reward terms of criteria_reward(), in info["rewards"] order
 TERMS = ("band", "efficiency", "speed", "comfort", "jerk", "safety", "collision", "lag")
+# step()'s reward: none (a reward object computes it), CriteriaReward's, MarginReward's
+REWARD_NONE, REWARD_CRITERIA, REWARD_MARGIN = 0, 1, 2
 # the episode record's rows (EgoTrace columns)
 RECORD = ("t", "v", "a", "gap", "v_lead", "a_lead", "lead_id", "a_y", "d2", "d3")
 
@@ -230,12 +233,15 @@ def action_to_accel(action, accel_max, decel_max, out):  # pragma: no cover - co
 def step(a_des, present, x, v, a, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
          sensor_range, F, I, obs_all,
          set_speed, tau1, grace, cfg, lead_prev, last_change, neg_since, fl, bo,
-         with_reward, a_comfort, w, terms, reward):  # pragma: no cover - compiled
+         with_reward, a_comfort, w, terms, reward, steps):  # pragma: no cover - compiled
     """One environment step after the drivers decided (``a_des`` ``(n, S)``): the world's
     move (:func:`acc_gym.simulation._world_kernel.move`; ``x``, ``v``, ``a`` the state
     before it, the new one goes to ``F``, ``I``, ``obs_all``), :func:`criteria` into the
     rows of ``fl`` (plus the scenes' new times in row :data:`F_T`) and ``bo`` and, with
-    ``with_reward``, the default reward (:func:`criteria_reward_rows`) -- what
+    ``with_reward``, a built-in reward: :data:`REWARD_CRITERIA` the default
+    (:func:`criteria_reward_rows`, weights ``w``), :data:`REWARD_MARGIN` the ``-v1`` ids'
+    (:func:`margin_reward_rows`, ``w`` its :data:`MARGIN_W`, ``steps`` the scenes' step
+    budgets), :data:`REWARD_NONE` none -- what
     :meth:`acc_gym.envs.core.EpisodeBatch.step` does between the drivers and
     :func:`finish`, in one call."""
     n = k.shape[0]
@@ -247,20 +253,107 @@ def step(a_des, present, x, v, a, vp, dt, k, y0, y1, t_start, duration, lengths,
             sensor_range, F, I, obs_all, t)
     criteria(t, F[1], F[2], I[0], F[6], a_prev, dt, set_speed, tau1, grace, cfg, lead_prev, last_change, neg_since,
              fl, bo)
-    if with_reward:
+    if with_reward == REWARD_CRITERIA:
         criteria_reward_rows(fl, bo, set_speed, tau1, a_comfort, w, terms, reward)
+    elif with_reward == REWARD_MARGIN:
+        margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, reward)
 
 
 @numba.njit(cache=True, error_model="numpy")
 def finish(active, reward, bo, k, steps, terminate_on_violation, episode_return, terminated, truncated, rows, ended,
            fl, F, I, width0, lane_width, n_lanes, rec, obs_all, set_speed, time_gap, obs_range, v2v, low, high,
-           obs):  # pragma: no cover - compiled
+           obs, f_low, f_high, obs32):  # pragma: no cover - compiled
     """The rest of a step: :func:`settle`, :func:`record` of the active scenes, and the
-    ego's :func:`observe` into ``obs`` (``(n, m)``, or nothing when it has no rows).
-    Returns :func:`settle`'s counts."""
+    ego's :func:`observe` into ``obs`` (``(n, m)``, or nothing when it has no rows); with
+    feature bounds ``f_low``, ``f_high`` (version 1; empty for version 0), the observation
+    with the safety-margin features as the environments emit it, :func:`features32` of
+    ``obs`` into ``obs32``. Returns :func:`settle`'s counts."""
     n_rows, n_ended = settle(active, reward, bo, k, steps, terminate_on_violation, episode_return, terminated,
                              truncated, rows, ended)
     record(rows[:n_rows], k, fl[F_T], F[1], F[2], I[0], F[6], F[5], F[4], width0, lane_width, n_lanes, rec)
     if obs.shape[0] > 0:
         observe(obs_all[0], set_speed, time_gap, obs_range, v2v, low, high, obs)
+        if f_low.shape[0] > 0:
+            features32(obs, obs_range, _O.B0, _O.B1, f_low, f_high, obs32)
     return n_rows, n_ended
+
+
+# the terms of margin_reward_rows() (MarginReward.TERMS), in info["rewards"] order
+MARGIN_TERMS = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag")
+# margin_reward_rows()'s weights and constants, in the order MarginReward._w holds them
+MARGIN_W = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "peak",
+            "slope", "response_decel", "jerk_scale", "max_step_cost", "A_COUNTED", "JERK_COUNTED", "E_COUNTED")
+
+
+@numba.njit(cache=True, error_model="numpy")
+def margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, reward):  # pragma: no cover
+    """:class:`~acc_gym.envs.reward.MarginReward`'s terms (:data:`MARGIN_TERMS` rows of
+    ``terms``) and their sum ``reward``, from the rows of :func:`criteria`'s outputs ``fl``
+    and ``bo`` and the scenes' step budgets ``steps`` and steps taken ``k`` (the steps left
+    the collision term charges).
+
+    ``w``: :data:`MARGIN_W`. The formulas and the order of the operations are those of
+    :meth:`MarginReward.__call__ <acc_gym.envs.reward.MarginReward.__call__>` (its numpy
+    formulation, the reference: ``tests/envs/test_env_fast_paths.py`` checks the two agree
+    bit for bit), one scene at a time instead of some forty array operations a step.
+    """
+    (band_w, eff_w, speed_w, resp_w, comfort_w, jerk_w, safety_w, coll_w, lag_w, peak, slope, resp_decel,
+     jerk_scale, max_cost, a_counted, jerk_counted, e_counted) = (
+        w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12], w[13], w[14], w[15], w[16])
+    width = max(peak, 1.0 - peak)
+    n = fl.shape[1]
+    for i in range(n):
+        v = fl[F_V, i]
+        a = fl[F_A, i]
+        gap = fl[F_GAP, i]
+        following = bo[B_FOLLOWING, i]
+        far = 1.2 * tau1[i] * fl[F_VLEAD, i] + 5.0  # [m]
+        behind = bo[B_FOLLOWABLE, i] and gap > far
+        lag = 0.0
+        if behind:
+            x = (gap - far) / far
+            lag = x / (1.0 + x) if math.isfinite(x) else 1.0
+        vs = set_speed[i]
+        e = abs(v - vs) / (0.2 * vs)
+        speed = 1.0 - e if e <= 1.0 else -slope * (min(e, e_counted) - 1.0)
+        u = fl[F_U, i]
+        if math.isnan(u):
+            u = 1.0
+        tent = max(0.0, 1.0 - abs(u - peak) / width)
+        response = 0.0
+        if fl[F_Q, i] < 0.0:
+            response = min(max((a + resp_decel) / resp_decel, 0.0), 1.0)
+        steps_left = max(float(steps[i] - k[i]), 0.0)
+        terms[0, i] = band_w * (1.0 if (following and bo[B_IN_BAND, i]) else 0.0)
+        terms[1, i] = eff_w * (tent if following else 0.0)
+        terms[2, i] = speed_w * (speed if (bo[B_FREE, i] or behind) else 0.0)
+        terms[3, i] = -resp_w * response
+        terms[4, i] = -comfort_w * (min(abs(a), a_counted) / a_comfort) ** 2
+        terms[5, i] = -jerk_w * (min(abs(fl[F_JERK, i]), jerk_counted) / jerk_scale) ** 2
+        terms[6, i] = -safety_w * (1.0 if bo[B_VIOLATION, i] else 0.0)
+        terms[7, i] = -(1.0 if bo[B_COLLISION, i] else 0.0) * (coll_w + max_cost * steps_left)
+        terms[8, i] = -lag_w * lag
+        total = 0.0
+        for j in range(terms.shape[0]):
+            total += terms[j, i]
+        reward[i] = total
+
+
+@numba.njit(cache=True, error_model="numpy")
+def features32(obs, sensor_range, b0, b1, low, high, out):  # pragma: no cover - compiled
+    """The version-1 observation as the environments emit it (float32): the v0 fields
+    ``obs`` ``(n, m)`` (float64, clipped) rounded to float32, then the safety-margin
+    features computed from those rounded fields (:func:`acc_gym.envs.observation.append_features`,
+    clipped to ``[low, high]``) and rounded in turn, into ``out`` ``(n, m + len(low))``
+    float32 -- what ``append_features(obs.astype(float32).astype(float64), ...).astype(float32)``
+    gives, in one call instead of four array conversions."""
+    n, m = obs.shape
+    fields = np.empty((n, m))
+    for i in range(n):
+        for j in range(m):
+            fields[i, j] = np.float32(obs[i, j])
+    full = np.empty((n, m + low.shape[0]))
+    _O.append_features(fields, sensor_range, b0, b1, low, high, full)
+    for i in range(n):
+        for j in range(full.shape[1]):
+            out[i, j] = np.float32(full[i, j])

@@ -9,7 +9,7 @@ import gymnasium as gym
 from gymnasium import spaces
 
 from acc_gym.envs import _kernel as _K
-from acc_gym.envs.config import EnvConfig, ScenarioSampler, mixture
+from acc_gym.envs.config import CounterScenarioSampler, EnvConfig, make_sampler, mixture
 from acc_gym.envs.core import EpisodeBatch
 from acc_gym.envs.observation import feature_bounds
 from acc_gym.envs.reward import CriteriaReward, MarginReward
@@ -56,6 +56,16 @@ def action_to_accel(action: np.ndarray, config: EnvConfig) -> np.ndarray:
         return out
     a = np.minimum(np.maximum(action, -1.0), 1.0)  # np.clip, at a fraction of its call overhead
     return np.where(a >= 0, a * config.accel_max, a * config.decel_max)
+
+
+def build_named(generator, config: EnvConfig, scenario_id: str, seed: int) -> Scenario:
+    """The scenario ``(scenario_id, seed)`` a reset names (``options={"scenario": id}``): as
+    the env's own sampler builds it when that is the ``-v1`` ids'
+    :class:`~acc_gym.envs.config.CounterScenarioSampler`, else by
+    :func:`acc_gym.scenarios.build` (the ``-v0`` streams)."""
+    if isinstance(generator, CounterScenarioSampler):
+        return generator.build(scenario_id, seed)
+    return build(scenario_id, seed=seed, drivers=config.drivers)
 
 
 def check_time_gap(value, what: str = "options['time_gap']") -> float | None:
@@ -195,7 +205,9 @@ class ACCEnv(gym.Env):
     ## Starting State
 
     The scenario's initial speeds and gaps (drawn from its parameter laws with the
-    environment's generator; ``reset(options={"scenario": id_or_Scenario})`` forces one).
+    environment's generator, or with ``scenario_generator="counter"`` by the counter-based
+    generator keyed by the scenario's id and seed, see *Version History*;
+    ``reset(options={"scenario": id_or_Scenario})`` forces one).
     ``reset(options={"time_gap": h})`` declares the controller's own time gap [s]: the
     episode (score, reward, violations) is judged at it, floored at 0.8 s and capped at the
     scenario's nominal gap (:func:`acc_gym.evaluation.scoring.judged_tau1`);
@@ -247,7 +259,9 @@ class ACCEnv(gym.Env):
     :class:`~acc_gym.envs.config.EnvConfig` (or dict); ``settings`` override its fields
     (``scenarios``, ``weights``, ``drivers``, ``accel_max``, ``decel_max``,
     ``sensor_range``, ``v2v``, ``terminate_on_violation``, ``scoring``, ``version``); a misspelt setting
-    is an error. ``scenario_generator(rng) -> Scenario`` replaces the default sampler.
+    is an error. ``scenario_generator(rng) -> Scenario`` replaces the default sampler;
+    ``"counter"`` names :class:`~acc_gym.envs.config.CounterScenarioSampler` (``"numpy"``
+    the default, :class:`~acc_gym.envs.config.ScenarioSampler`).
     ``render_mode``: ``"rgb_array"`` (uint8 top view) or ``"human"`` (a matplotlib window).
 
     ## Version History
@@ -261,6 +275,11 @@ class ACCEnv(gym.Env):
       the others draw what their v0 draws. The v0 ids are unchanged (stored reference
       episodes, ``tests/envs/test_v0_reference.py``). Provisional until issue 33's shipped
       policies are trained on it: a change before acc-gym 0.8.0 is listed here.
+    * acc-gym 0.11.0 (issue 35), opt-in and no id's default: ``scenario_generator="counter"``
+      draws each scenario's parameters with a compiled counter-based generator keyed by the
+      scenario's ``(id, seed)`` (:class:`~acc_gym.envs.config.CounterScenarioSampler`,
+      :mod:`acc_gym.scenarios.batched`; a vector env draws the scenes it resets in one
+      call): the same ``(id, seed)`` sequence and laws as the default, other numbers.
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 5}
@@ -273,7 +292,7 @@ class ACCEnv(gym.Env):
         self.render_mode = render_mode
         self.action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
         self.observation_space = observation_space(self.config)
-        self.core = EpisodeBatch(1, self.config, scenario_generator or ScenarioSampler(self.config),
+        self.core = EpisodeBatch(1, self.config, make_sampler(self.config, scenario_generator),
                                  reward_fn or default_reward(self.config), mpc_settings)
         self.core.obs_bounds = self._bounds = (self.observation_space.low.astype(float),
                                                self.observation_space.high.astype(float))
@@ -297,7 +316,8 @@ class ACCEnv(gym.Env):
         if options:
             raise ValueError(f"unknown reset option(s) {sorted(options)}; known: ['scenario', 'time_gap']")
         if isinstance(scenario, str):
-            scenario = build(scenario, seed=int(self.np_random.integers(0, 2 ** 31 - 1)), drivers=self.config.drivers)
+            scenario = build_named(self.core.generator, self.config, scenario,
+                                   int(self.np_random.integers(0, 2 ** 31 - 1)))
         elif scenario is not None and not isinstance(scenario, Scenario):
             raise TypeError(f"options['scenario'] must be a scenario id or a Scenario, got {type(scenario).__name__}")
         last, self._last_info = self._last_info, None
@@ -321,15 +341,19 @@ class ACCEnv(gym.Env):
             a_des = np.array([x * self._accel_max if x >= 0 else x * self._decel_max])
         else:
             a_des = action_to_accel(check_actions(action, (1,)), self.config)
-        reward, term, trunc, info = self.core.step(a_des)
-        fl, bo, terms = self.core.last_rows
+        core = self.core
+        reward, term, trunc, info = core.step(a_des, arrays=False)  # this row's info is made here
+        fl, bo, terms = core.last_rows
         f = fl[:, 0].tolist()  # one conversion for every float of the step (criteria rows, time)
         q = f[_K.F_Q]
+        mode = core.drivers.info.get("mode")  # rows: the POV's, then the POV2's (n = 1)
+        fb = core.drivers.fallbacks
         out = {"t": f[_K.F_T], "q": q, "g": q, "gap_safe": f[_K.F_GS], "a_applied": f[_K.F_A],
-               "violation": bool(bo[_K.B_VIOLATION, 0]), "modes": info["modes"][0].copy(),
-               "fallbacks": int(info["fallbacks"][0])}
-        if terms is not None:  # the default reward's terms, as one array
-            out["rewards"] = dict(zip(_K.TERMS, terms[:, 0].tolist()))
+               "violation": bool(bo[_K.B_VIOLATION, 0]),
+               "modes": mode[:2].copy() if mode is not None else np.full(2, -1, np.int64),
+               "fallbacks": int(fb[0] + fb[1])}
+        if terms is not None:  # a built-in reward's terms, as one array
+            out["rewards"] = dict(zip(core.last_term_names, terms[:, 0].tolist()))
         else:
             out["rewards"] = {k: float(v[0]) for k, v in info["rewards"].items()}
         out["scenario"] = self.scenario.id

@@ -17,7 +17,7 @@ from acc_gym.drivers.slots import SlotDrivers, SlotView
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.config import EnvConfig
 from acc_gym.envs.observation import B0, B1, append_features, feature_bounds
-from acc_gym.envs.reward import CriteriaReward, StepIndicators
+from acc_gym.envs.reward import CriteriaReward, MarginReward, StepIndicators
 from acc_gym.evaluation.scoring import judged_tau1, score_episode
 from acc_gym.evaluation.trace import EgoTrace
 from acc_gym.scenarios.spec import Scenario
@@ -88,7 +88,13 @@ class EpisodeBatch:
         (:func:`acc_gym.evaluation.scoring.judged_tau1`)."""
         rows = [int(r) for r in np.atleast_1d(rows)]
         given = scenarios if scenarios is not None else [None] * len(rows)
-        chosen = [sc if sc is not None else self.draw(rngs[j]) for j, sc in enumerate(given)]
+        missing = [j for j, sc in enumerate(given) if sc is None]
+        draw_many = getattr(self.generator, "draw_many", None)
+        if draw_many is not None and len(missing) > 1:  # a batched generator: the scenes' draws in one call
+            drawn = dict(zip(missing, draw_many([rngs[j] for j in missing])))
+            chosen = [drawn[j] if sc is None else sc for j, sc in enumerate(given)]
+        else:
+            chosen = [sc if sc is not None else self.draw(rngs[j]) for j, sc in enumerate(given)]
         for sc in chosen:
             if not isinstance(sc, Scenario):
                 raise TypeError(f"the scenario generator must return a Scenario, got {type(sc).__name__}")
@@ -186,13 +192,17 @@ class EpisodeBatch:
         computes from the emitted ``-v0`` fields: a ``-v1`` policy given a ``-v0`` observation
         acts bit for bit as on the ``-v1`` one (:class:`acc_gym_agents.rl.policy.SB3Policy`)."""
         low, high = self._feature_bounds
+        if dtype is np.float32 and obs0.dtype == np.float64:  # the envs' case, in one compiled call
+            out32 = np.empty((obs0.shape[0], obs0.shape[1] + low.shape[0]), dtype=np.float32)
+            K.features32(obs0, float(self.config.sensor_range), B0, B1, low, high, out32)
+            return out32
         out = np.empty((obs0.shape[0], obs0.shape[1] + low.shape[0]))
         fields = np.ascontiguousarray(obs0.astype(dtype, copy=False), dtype=float)
         append_features(fields, float(self.config.sensor_range), B0, B1, low, high, out)
         return out.astype(dtype, copy=False)
 
     # ------------------------------------------------------------------ step
-    def step(self, a_des: np.ndarray, active: np.ndarray | None = None):
+    def step(self, a_des: np.ndarray, active: np.ndarray | None = None, arrays: bool = True):
         """Advance every scene by one step with desired ego accelerations ``a_des`` [m/s^2].
 
         Returns ``(reward, terminated, truncated, info)`` as arrays over the scenes;
@@ -200,6 +210,9 @@ class EpisodeBatch:
         the episodes that ended. Scenes not ``active`` are stepped but their results are
         meaningless (a vector env's scenes that are about to be reset). With
         :attr:`obs_bounds` set, :attr:`last_obs` holds the observations after the step.
+        With ``arrays=False`` (the single env, which reads :attr:`last_rows` and the drivers
+        itself) ``info`` holds only ``"final"`` and, for a reward that is not built in,
+        ``"rewards"``: the per-step arrays are not assembled.
 
         The drivers decide in :meth:`SingleLaneWorld.decide
         <acc_gym.simulation.single_lane.SingleLaneWorld.decide>`; everything after them (the
@@ -217,19 +230,23 @@ class EpisodeBatch:
         grace = self._grace if self._grace is not None else self.tau1
         fl = np.empty((K.N_FLOAT + 1, n))  # criteria rows, then the time (K.F_T)
         bo = np.empty((K.N_BOOL, n), dtype=bool)
-        default = type(self.reward_fn) is CriteriaReward
-        terms_arr = np.empty((len(K.TERMS), n))
+        kind = type(self.reward_fn)
+        default = kind is CriteriaReward
+        margin = kind is MarginReward  # the -v1 ids' default
+        names = K.MARGIN_TERMS if margin else K.TERMS
+        terms_arr = np.empty((len(names), n))
         reward = np.empty(n)
         lat = w.lateral
         K.step(a_all, w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1, lat.t_start, lat.duration,
                w.lengths, w.width, float(w.road.lane_width), w.collided, w.sensor_range, F, I, obs_all,
                self.set_speed, self.tau1, grace, self._cfg, self.lead_prev, self.last_change, self.neg_since,
-               fl, bo, default, float(cfg.a_x_comfort), self.reward_fn._w if default else self._cfg, terms_arr,
-               reward)
+               fl, bo, K.REWARD_CRITERIA if default else K.REWARD_MARGIN if margin else K.REWARD_NONE,
+               float(cfg.a_x_comfort), self.reward_fn._w if (default or margin) else self._cfg, terms_arr, reward,
+               self.steps)
         w.adopt(F, I, obs_all)
         q, gs, collision, violation = fl[K.F_Q], fl[K.F_GS], bo[K.B_COLLISION], bo[K.B_VIOLATION]
-        if default:
-            terms = dict(zip(K.TERMS, terms_arr))
+        if default or margin:
+            terms = dict(zip(names, terms_arr))
         else:
             ind = StepIndicators(v=fl[K.F_V], a=fl[K.F_A], jerk=fl[K.F_JERK], set_speed=self.set_speed,
                                  has_lead=bo[K.B_HAS], gap=fl[K.F_GAP], gap_safe=gs, q=q, in_band=bo[K.B_IN_BAND],
@@ -241,39 +258,53 @@ class EpisodeBatch:
             if reward.shape != (n,):
                 reward = np.broadcast_to(reward, (n,)).copy()
             terms_arr = None
+            names = tuple(terms)
         if active is None:
             active = ~self.done
         terminated, truncated = np.empty((2, n), dtype=bool)
         rows, ended = np.empty((2, n), dtype=np.int64)
+        f_low, f_high = self._feature_bounds  # the safety-margin features' (empty for version 0)
+        extra = f_low.shape[0]
         if self.obs_bounds is not None:
             low, high = self.obs_bounds
-            extra = self._feature_bounds[0].shape[0]  # the safety-margin features (none for version 0)
             m0 = low.shape[0] - extra  # the v0 fields, which the kernel writes
             low, high = low[:m0], high[:m0]
             obs = np.empty((n, m0), dtype=float if extra else np.float32)
+            obs32 = np.empty((n, m0 + extra), dtype=np.float32) if extra else obs  # version 1: the emitted one
         else:
             low = high = self._no_bounds
-            obs = np.empty((0, 1), dtype=np.float32)
+            obs = obs32 = np.empty((0, 1), dtype=np.float32)
         n_rows, n_ended = K.finish(active, reward, bo, w.k, self.steps, self.config.terminate_on_violation,
                                    self.episode_return, terminated, truncated, rows, ended, fl, F, I, self._ego_width,
                                    self.lane_width, self.n_lanes, self._rec_arr, obs_all, self.set_speed,
                                    self.time_gap, float(self.config.sensor_range), bool(self.config.v2v), low, high,
-                                   obs)
-        if obs.shape[0] and self._feature_bounds[0].shape[0]:
-            obs = self._with_features(obs, np.float32)
-        self.last_obs = obs if obs.shape[0] else None
-        self.last_rows = (fl, bo, terms_arr)  # the step's criteria rows (and default reward terms) as arrays
+                                   obs, f_low, f_high, obs32)
+        self.last_obs = obs32 if obs32.shape[0] else None
+        # the step's criteria rows and, for the built-in rewards, their terms as one array (rows: names)
+        self.last_rows = (fl, bo, terms_arr)
+        self.last_term_names = names
         ended = ended[:n_ended]
-        fb = self.drivers.fallbacks  # (slots x scenes): each slot's rows in turn
-        fallbacks = fb[:n] + fb[n:]  # the two surrounding slots of each scene
-        mode = self.drivers.info.get("mode")
-        modes = mode.reshape(SLOTS - 1, n).T.copy() if mode is not None else np.full((n, SLOTS - 1), -1, np.int64)
-        info = {"t": fl[K.F_T], "q": q, "g": q, "gap_safe": gs, "a_applied": fl[K.F_A], "violation": violation,
-                "modes": modes, "fallbacks": fallbacks, "rewards": terms}
+        if arrays:
+            info = {"t": fl[K.F_T], "q": q, "g": q, "gap_safe": gs, "a_applied": fl[K.F_A], "violation": violation,
+                    "modes": self.modes(), "fallbacks": self.fallbacks(), "rewards": terms}
+        else:
+            info = {} if terms_arr is not None else {"rewards": terms}
         info["final"] = {int(r): self._final(int(r)) for r in ended} if n_ended else {}
         if n_ended:
             self.done[ended] = True
         return reward, terminated, truncated, info
+
+    def modes(self) -> np.ndarray:
+        """The surrounding drivers' modes after the last step, ``(n, 2)`` (POV, POV2; -1: none)."""
+        mode = self.drivers.info.get("mode")  # (slots x scenes): each slot's rows in turn
+        if mode is None:
+            return np.full((self.n, SLOTS - 1), -1, np.int64)
+        return mode.reshape(SLOTS - 1, self.n).T.copy()
+
+    def fallbacks(self) -> np.ndarray:
+        """Each scene's solver fallbacks of its two surrounding drivers this episode, ``(n,)``."""
+        fb = self.drivers.fallbacks  # (slots x scenes): each slot's rows in turn
+        return fb[:self.n] + fb[self.n:]
 
     def _final(self, row: int) -> dict:
         k = int(self.world.k[row])

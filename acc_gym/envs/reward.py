@@ -229,6 +229,11 @@ class MarginReward:
         _check_weights(self, ("response_decel", "jerk_scale"))
         if not 0.0 <= self.peak <= 1.0:
             raise ValueError(f"MarginReward.peak must be in [0, 1] (a position in the band), got {self.peak!r}")
+        from acc_gym.envs._kernel import MARGIN_W
+
+        # the weights and constants of the compiled terms (acc_gym.envs._kernel.margin_reward_rows),
+        # computed once: the environment core's fast path for this reward
+        object.__setattr__(self, "_w", np.array([float(getattr(self, name)) for name in MARGIN_W], dtype=float))
 
     A_COUNTED = 9.0  # [m/s^2] the comfort term counts |a| up to this (about the tyre limit)
     JERK_COUNTED = 30.0  # [m/s^3] the jerk term counts |jerk| up to this
@@ -239,6 +244,23 @@ class MarginReward:
         """The most the terms other than the collision can charge in one step (a_comfort 3 m/s^2)."""
         return (self.speed * self.slope * (self.E_COUNTED - 1.0) + self.response + self.comfort * (self.A_COUNTED / 3.0) ** 2
                 + self.jerk * (self.JERK_COUNTED / self.jerk_scale) ** 2 + self.safety + self.lag)
+
+    def from_criteria(self, fl: np.ndarray, bo: np.ndarray, set_speed: np.ndarray, tau1: np.ndarray,
+                      steps: np.ndarray, k: np.ndarray, a_comfort: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """What :meth:`__call__` returns for the :class:`StepIndicators` the environment core
+        builds from the rows of :func:`acc_gym.envs._kernel.criteria`'s outputs ``fl`` and
+        ``bo``, the scenes' step budgets ``steps`` and steps taken ``k`` (int arrays), in one
+        compiled call (:func:`acc_gym.envs._kernel.margin_reward_rows`, the same operations
+        in the same order: the same bits). The core takes this path for a ``MarginReward``
+        (the ``-v1`` ids' default) itself, not for a subclass, which may override
+        :meth:`__call__`."""
+        from acc_gym.envs import _kernel as K
+
+        n = fl.shape[1]
+        terms = np.empty((len(K.MARGIN_TERMS), n))
+        reward = np.empty(n)
+        K.margin_reward_rows(fl, bo, set_speed, tau1, steps, k, float(a_comfort), self._w, terms, reward)
+        return reward, dict(zip(K.MARGIN_TERMS, terms))
 
     def __call__(self, s: StepIndicators) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         if s.followable is None or s.v_lead is None or s.tau1 is None:

@@ -38,12 +38,12 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from acc_gym.envs.acc_env import action_to_accel, check_actions, default_reward, make_config, observation_space
-from acc_gym.envs.config import EnvConfig, ScenarioSampler
+from acc_gym.envs.acc_env import (action_to_accel, build_named, check_actions, default_reward, make_config,
+                                  observation_space)
+from acc_gym.envs.config import CounterScenarioSampler, EnvConfig, ScenarioSampler, make_sampler
 from acc_gym.envs.core import EpisodeBatch
 from acc_gym.evaluation.scoring import score_episode
 from acc_gym.envs.shards import Shards, merge_infos, split
-from acc_gym.scenarios.registry import build
 from acc_gym.scenarios.spec import Scenario
 
 _STEP_KEYS = ("t", "q", "g", "gap_safe", "a_applied", "violation", "fallbacks")
@@ -81,7 +81,7 @@ class ACCVectorEnv(VectorEnv):
                                    "reward_fn": reward_fn, "render_mode": render_mode, "mpc_settings": mpc_settings},
                                   workers_context)
             return
-        self.core = EpisodeBatch(self.num_envs, self.config, scenario_generator or ScenarioSampler(self.config),
+        self.core = EpisodeBatch(self.num_envs, self.config, make_sampler(self.config, scenario_generator),
                                  reward_fn or default_reward(self.config), mpc_settings)
         space = self.single_observation_space
         self.core.obs_bounds = self._bounds = (space.low.astype(float), space.high.astype(float))
@@ -132,7 +132,7 @@ class ACCVectorEnv(VectorEnv):
             return np.concatenate([o for o, _ in outs]), merge_infos([i for _, i in outs], self._shards.sizes)
         self._rngs = [seeding.np_random(s)[0] for s in seeds]
         if scenarios is not None:
-            scenarios = [build(s, seed=int(self._rngs[i].integers(0, 2 ** 31 - 1)), drivers=self.config.drivers)
+            scenarios = [build_named(self.core.generator, self.config, s, int(self._rngs[i].integers(0, 2 ** 31 - 1)))
                          if isinstance(s, str) else s for i, s in enumerate(scenarios)]
             for s in scenarios:
                 if s is not None and not isinstance(s, Scenario):
@@ -208,7 +208,7 @@ class ACCVectorEnv(VectorEnv):
         that needs it, as it would have been without this call."""
         if self._shards is not None:
             return sum(self._shards.call("prepare_resets"))
-        if type(self.core.generator) is not ScenarioSampler:
+        if type(self.core.generator) not in (ScenarioSampler, CounterScenarioSampler):
             return 0
         count = 0
         for r in np.flatnonzero(self._autoreset).tolist():

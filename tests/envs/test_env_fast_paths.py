@@ -221,9 +221,9 @@ def test_single_env_action_fast_path_maps_like_the_kernel():
     seen = []
     step = env.core.step
 
-    def spy(a_des, active=None):
+    def spy(a_des, active=None, **kwargs):
         seen.append(a_des.copy())
-        return step(a_des, active)
+        return step(a_des, active, **kwargs)
 
     env.core.step = spy
     values = [0.0, -0.0, 0.3, -0.3, 1.0, -1.0, 1.7, -2.5, 1e-30, -1e-30, 0.999999]

@@ -1,0 +1,153 @@
+"""The -v1 ids' fast paths (issue 35) equal the paths they short-cut, bit for bit.
+
+* :meth:`MarginReward.from_criteria` (the compiled :func:`acc_gym.envs._kernel.margin_reward_rows`,
+  the core's path for the -v1 default reward) equals :meth:`MarginReward.__call__` (numpy,
+  the reference) on the :class:`StepIndicators` built from the same rows;
+* :func:`acc_gym.envs._kernel.features32` equals the float64 chain it replaced (fields
+  rounded to float32, features appended, all rounded to float32);
+* end to end, every -v1 id with its default reward gives the observations, rewards,
+  terminations and infos that the same id gives with an equal reward object taking the
+  :class:`StepIndicators` path (single env, and a vector env with autoresets).
+"""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+import pytest
+
+import acc_gym  # noqa: F401  (registers the ids)
+from acc_gym.envs import _kernel as K
+from acc_gym.envs.observation import B0, B1, append_features, feature_bounds
+from acc_gym.envs.reward import MarginReward, StepIndicators
+
+V1 = ["acc_gym/CarFollowing-v1", "acc_gym/SingleLane-v1", "acc_gym/NCAP-v1", "acc_gym/StopAndGo-v1"]
+
+
+def random_rows(rng, n):
+    fl = np.empty((K.N_FLOAT, n))
+    fl[K.F_V] = rng.uniform(0.0, 45.0, n)
+    fl[K.F_A] = rng.uniform(-12.0, 5.0, n)
+    fl[K.F_JERK] = rng.normal(0.0, 30.0, n)
+    fl[K.F_GAP] = np.where(rng.random(n) < 0.8, rng.uniform(-2.0, 400.0, n), np.inf)
+    fl[K.F_GS] = rng.uniform(-5.0, 50.0, n)
+    fl[K.F_Q] = fl[K.F_GAP] - fl[K.F_GS]
+    fl[K.F_U] = np.where(rng.random(n) < 0.7, rng.uniform(0.0, 1.0, n), np.nan)
+    fl[K.F_VLEAD] = rng.uniform(0.0, 35.0, n)
+    fl[K.F_ALEAD] = rng.uniform(-5.0, 3.0, n)
+    bo = rng.random((K.N_BOOL, n)) < 0.5
+    return fl, bo
+
+
+def same_bits(a, b) -> bool:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return a.shape == b.shape and np.array_equal(a.view(np.int64), b.view(np.int64))
+
+
+@pytest.mark.parametrize("reward", [MarginReward(), MarginReward(band=2.0, lag=1.5, peak=0.2, slope=0.5, jerk_scale=4.0,
+                                                                 response_decel=3.0, collision=50.0)],
+                         ids=["default", "weights"])
+def test_margin_reward_from_criteria_rows_equals_the_numpy_reference(reward):
+    rng = np.random.default_rng(1)
+    n = 2000
+    fl, bo = random_rows(rng, n)
+    set_speed, tau1 = rng.uniform(5.0, 40.0, n), rng.uniform(0.5, 3.0, n)
+    steps, k = rng.integers(1, 400, n), rng.integers(0, 420, n)  # some past their budget (steps left < 0)
+    ind = StepIndicators(v=fl[K.F_V], a=fl[K.F_A], jerk=fl[K.F_JERK], set_speed=set_speed, has_lead=bo[K.B_HAS],
+                         gap=fl[K.F_GAP], gap_safe=fl[K.F_GS], q=fl[K.F_Q], in_band=bo[K.B_IN_BAND],
+                         following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=bo[K.B_VIOLATION],
+                         collision=bo[K.B_COLLISION], a_comfort=2.5, followable=bo[K.B_FOLLOWABLE],
+                         v_lead=fl[K.F_VLEAD], tau1=tau1, steps_left=steps - k)
+    r_slow, terms_slow = reward(ind)
+    r_fast, terms_fast = reward.from_criteria(fl, bo, set_speed, tau1, steps, k, 2.5)
+    assert list(terms_fast) == list(terms_slow) == list(MarginReward.TERMS) == list(K.MARGIN_TERMS)
+    for key in MarginReward.TERMS:
+        assert same_bits(terms_fast[key], terms_slow[key]), key
+    assert same_bits(r_fast, r_slow)
+    # the rows cover every branch: behind with an infinite gap, the response term, collisions
+    assert np.isinf(fl[K.F_GAP][bo[K.B_FOLLOWABLE]]).any() and (terms_slow["response"] < 0).any()
+    assert (terms_slow["collision"] < -reward.collision).any()
+
+
+def test_features32_equals_the_float64_chain():
+    rng = np.random.default_rng(2)
+    for v2v in (False, True):
+        m = 11 if v2v else 7
+        obs = rng.uniform(-5.0, 80.0, (500, m))
+        obs[:, 2] = np.where(rng.random(500) < 0.2, 200.0, rng.uniform(0.0, 200.0, 500))
+        obs[:, 0] = np.where(rng.random(500) < 0.05, 0.0, obs[:, 0])
+        low, high = feature_bounds(v2v)
+        ref = np.empty((500, m + low.size))
+        append_features(np.ascontiguousarray(obs.astype(np.float32), dtype=float), 200.0, B0, B1, low, high, ref)
+        ref = ref.astype(np.float32)
+        out = np.empty_like(ref)
+        K.features32(obs, 200.0, B0, B1, low, high, out)
+        assert np.array_equal(out.view(np.int32), ref.view(np.int32))
+
+
+class IndicatorMarginReward:
+    """MarginReward behind an object the core does not recognise (the StepIndicators path,
+    the reference of the compiled one)."""
+
+    def __init__(self):
+        self.inner = MarginReward()
+
+    def __call__(self, indicators):
+        return self.inner(indicators)
+
+
+def _plain(info: dict) -> dict:
+    return {k: (v.tolist() if isinstance(v, np.ndarray) else _plain(v) if isinstance(v, dict) else v)
+            for k, v in info.items()}
+
+
+@pytest.mark.parametrize("env_id", V1)
+def test_a_v1_episode_with_the_compiled_reward_is_the_reference_episode(env_id):
+    def run(reward_fn):
+        env = gymnasium.make(env_id, reward_fn=reward_fn)
+        rng = np.random.default_rng(3)
+        out = [env.reset(seed=4)]
+        for _ in range(700):  # StopAndGo's 600-step episode ends too
+            step = env.step(rng.uniform(-1.0, 1.0, 1).astype(np.float32))
+            out.append(step)
+            if step[2] or step[3]:
+                out.append(env.reset())
+        return out
+
+    fast, slow = run(None), run(IndicatorMarginReward())
+    assert len(fast) == len(slow)
+    ends = 0
+    for a, b in zip(fast, slow):
+        assert a[0].dtype == b[0].dtype == np.float32 and np.array_equal(a[0], b[0])
+        if len(a) == 5:
+            assert a[1] == b[1] and a[2:4] == b[2:4]
+            assert _plain(a[4]) == _plain(b[4])
+            ends += bool(a[2] or a[3])
+        else:
+            assert _plain(a[1]) == _plain(b[1])
+    assert ends >= 1  # an episode ended (score, report and return compared too)
+
+
+@pytest.mark.parametrize("env_id", ["acc_gym/SingleLane-v1", "acc_gym/CarFollowing-v1"])
+def test_a_v1_vector_env_with_the_compiled_reward_is_the_reference(env_id):
+    def run(reward_fn):
+        envs = gymnasium.make_vec(env_id, num_envs=4, vectorization_mode="vector_entry_point", reward_fn=reward_fn)
+        rng = np.random.default_rng(5)
+        out = [envs.reset(seed=6)]
+        for _ in range(150):
+            out.append(envs.step(rng.uniform(-1.0, 1.0, (4, 1)).astype(np.float32)))
+        envs.close()
+        return out
+
+    fast, slow = run(None), run(IndicatorMarginReward())
+    for a, b in zip(fast, slow):
+        assert np.array_equal(a[0], b[0])
+        if len(a) == 5:
+            assert np.array_equal(a[1], b[1]) and np.array_equal(a[2], b[2]) and np.array_equal(a[3], b[3])
+            ia, ib = a[4], b[4]
+            assert set(ia) == set(ib)
+            for key in ia:
+                if key == "rewards":
+                    assert all(np.array_equal(ia[key][t], ib[key][t]) for t in ia[key])
+                elif key != "report":
+                    assert np.array_equal(ia[key], ib[key]), key
