@@ -56,6 +56,19 @@ _FIELDS = ("speed", "acceleration", "gap", "relative speed", "in-range flag", "s
            "lead acceleration (V2V)", "gap2", "relative speed 2", "in-range flag 2")
 
 
+def check_params(obj, who: str, positive=()) -> None:
+    """Every dataclass field of ``obj`` a finite number >= 0, those named in ``positive`` > 0; else a
+    ValueError naming ``who``, the field and the value."""
+    for f in fields(obj):
+        x = getattr(obj, f.name)
+        number = isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
+        if not number or not math.isfinite(x) or x < 0:
+            raise ValueError(f"{who}: {f.name} must be a finite number >= 0, got {x!r}")
+    for name in positive:
+        if getattr(obj, name) <= 0:
+            raise ValueError(f"{who}: {name} must be > 0, got {getattr(obj, name)!r}")
+
+
 def check_rows(o: np.ndarray, who: str) -> None:
     """Observation rows ``(n, 7 | 11 | 13 | 23)`` of finite numbers, else a ValueError naming ``who``,
     the field and the row."""
@@ -146,14 +159,7 @@ class CCDriver(_Policy):
     vectorised: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            x = getattr(self, f.name)
-            number = isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
-            if not number or not math.isfinite(x) or x < 0:
-                raise ValueError(f"cc-driver: {f.name} must be a finite number >= 0, got {x!r}")
-        for name in ("brake_decel", "brake_ramp_time", "dt", "accel_max", "decel_max"):
-            if getattr(self, name) <= 0:
-                raise ValueError(f"cc-driver: {name} must be > 0, got {getattr(self, name)!r}")
+        check_params(self, "cc-driver", ("brake_decel", "brake_ramp_time", "dt", "accel_max", "decel_max"))
         self.follow = LinearACC(accel_max=self.accel_max, decel_max=self.decel_max)
         self.reset()
 

@@ -39,13 +39,12 @@ arguments (``fsm_driver(reaction_time=1.0)``).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields
 from typing import ClassVar
 
 import numpy as np
 
-from acc_gym_agents.controllers.cc_driver import check_rows
+from acc_gym_agents.controllers.cc_driver import check_params, check_rows
 from acc_gym_agents.controllers.linear import LinearACC, _Policy
 
 # ---- the model's numbers: value, unit, source ------------------------------------------------------------
@@ -111,14 +110,8 @@ class FSMDriver(_Policy):
     vectorised: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            x = getattr(self, f.name)
-            number = isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
-            if not number or not math.isfinite(x) or x < 0:
-                raise ValueError(f"fsm-driver: {f.name} must be a finite number >= 0, got {x!r}")
-        for name in ("comfort_decel", "lead_decel", "brake_decel", "jerk", "dt", "accel_max", "decel_max"):
-            if getattr(self, name) <= 0:
-                raise ValueError(f"fsm-driver: {name} must be > 0, got {getattr(self, name)!r}")
+        check_params(self, "fsm-driver", ("comfort_decel", "lead_decel", "brake_decel", "jerk", "dt", "accel_max",
+                                          "decel_max"))
         if self.max_fuzzy_decel <= self.comfort_decel:
             raise ValueError(f"fsm-driver: max_fuzzy_decel ({self.max_fuzzy_decel!r}) must exceed comfort_decel "
                              f"({self.comfort_decel!r})")

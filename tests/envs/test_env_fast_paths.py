@@ -21,6 +21,7 @@ from acc_gym.envs import _kernel as K
 from acc_gym.envs.acc_env import action_to_accel
 from acc_gym.envs.config import EnvConfig
 from acc_gym.envs.reward import CriteriaReward, StepIndicators
+from kernel_rows import random_rows  # tests/envs/kernel_rows.py
 
 
 def numpy_action_to_accel(action, config):
@@ -39,21 +40,6 @@ def test_compiled_action_map_equals_the_numpy_formulation(config):
     # other inputs (float32, 2-D, lists) keep the numpy path
     for other in (a.astype(np.float32), a.reshape(-1, 1)):
         assert np.array_equal(action_to_accel(other, config), numpy_action_to_accel(other, config))
-
-
-def random_rows(rng, n):
-    fl = np.empty((K.N_FLOAT, n))
-    fl[K.F_V] = rng.uniform(0.0, 35.0, n)
-    fl[K.F_A] = rng.uniform(-9.0, 4.0, n)
-    fl[K.F_JERK] = rng.normal(0.0, 20.0, n)
-    fl[K.F_GAP] = np.where(rng.random(n) < 0.8, rng.uniform(-2.0, 150.0, n), np.inf)
-    fl[K.F_GS] = rng.uniform(-5.0, 50.0, n)
-    fl[K.F_Q] = fl[K.F_GAP] - fl[K.F_GS]
-    fl[K.F_U] = np.where(rng.random(n) < 0.7, rng.uniform(0.0, 1.0, n), np.nan)
-    fl[K.F_VLEAD] = rng.uniform(0.0, 35.0, n)
-    fl[K.F_ALEAD] = rng.uniform(-5.0, 3.0, n)
-    bo = rng.random((K.N_BOOL, n)) < 0.5
-    return fl, bo
 
 
 @pytest.mark.parametrize("reward", [CriteriaReward(), CriteriaReward(band=2.0, lag=1.5, jerk_scale=4.0)],

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import acc_gym  # noqa: F401  (registers the ids)
+import kernel_rows  # tests/envs/kernel_rows.py
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.observation import B0, B1, append_features, feature_bounds
 from acc_gym.envs.reward import MarginReward, StepIndicators
@@ -25,18 +26,7 @@ V1 = ["acc_gym/CarFollowing-v1", "acc_gym/SingleLane-v1", "acc_gym/NCAP-v1", "ac
 
 
 def random_rows(rng, n):
-    fl = np.empty((K.N_FLOAT, n))
-    fl[K.F_V] = rng.uniform(0.0, 45.0, n)
-    fl[K.F_A] = rng.uniform(-12.0, 5.0, n)
-    fl[K.F_JERK] = rng.normal(0.0, 30.0, n)
-    fl[K.F_GAP] = np.where(rng.random(n) < 0.8, rng.uniform(-2.0, 400.0, n), np.inf)
-    fl[K.F_GS] = rng.uniform(-5.0, 50.0, n)
-    fl[K.F_Q] = fl[K.F_GAP] - fl[K.F_GS]
-    fl[K.F_U] = np.where(rng.random(n) < 0.7, rng.uniform(0.0, 1.0, n), np.nan)
-    fl[K.F_VLEAD] = rng.uniform(0.0, 35.0, n)
-    fl[K.F_ALEAD] = rng.uniform(-5.0, 3.0, n)
-    bo = rng.random((K.N_BOOL, n)) < 0.5
-    return fl, bo
+    return kernel_rows.random_rows(rng, n, v_max=45.0, a_range=(-12.0, 5.0), jerk_sd=30.0, gap_max=400.0)
 
 
 def same_bits(a, b) -> bool:

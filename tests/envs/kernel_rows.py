@@ -1,0 +1,22 @@
+"""Random step-kernel rows for the envs' fast-path tests (shared by the -v0 and -v1 tests)."""
+
+import numpy as np
+
+from acc_gym.envs import _kernel as K
+
+
+def random_rows(rng, n, v_max=35.0, a_range=(-9.0, 4.0), jerk_sd=20.0, gap_max=150.0):
+    """``(fl, bo)``: ``n`` rows of the kernel's float and bool fields, with out-of-range gaps,
+    negative gaps and missing utilisations mixed in."""
+    fl = np.empty((K.N_FLOAT, n))
+    fl[K.F_V] = rng.uniform(0.0, v_max, n)
+    fl[K.F_A] = rng.uniform(*a_range, n)
+    fl[K.F_JERK] = rng.normal(0.0, jerk_sd, n)
+    fl[K.F_GAP] = np.where(rng.random(n) < 0.8, rng.uniform(-2.0, gap_max, n), np.inf)
+    fl[K.F_GS] = rng.uniform(-5.0, 50.0, n)
+    fl[K.F_Q] = fl[K.F_GAP] - fl[K.F_GS]
+    fl[K.F_U] = np.where(rng.random(n) < 0.7, rng.uniform(0.0, 1.0, n), np.nan)
+    fl[K.F_VLEAD] = rng.uniform(0.0, 35.0, n)
+    fl[K.F_ALEAD] = rng.uniform(-5.0, 3.0, n)
+    bo = rng.random((K.N_BOOL, n)) < 0.5
+    return fl, bo
