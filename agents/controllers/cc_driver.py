@@ -263,9 +263,14 @@ class CCDriver(_Policy):
 def cc_driver(**params) -> CCDriver:
     """The ``cc-driver`` controller: :class:`CCDriver` with ``params`` (its fields, e.g.
     ``reaction_time``, ``brake_decel``, ``accel_max``); an unknown name is a ValueError naming it."""
-    allowed = sorted(f.name for f in fields(CCDriver))
+    return build_with(CCDriver, "cc-driver", params)
+
+
+def build_with(cls, name: str, params: dict):
+    """``cls(**params)``, an unknown parameter a ValueError naming it and listing ``cls``'s fields."""
+    allowed = sorted(f.name for f in fields(cls))
     bad = sorted(set(params) - set(allowed))
     if bad:
-        raise ValueError(f"controller 'cc-driver' has no parameter {', '.join(map(repr, bad))}: its parameters are "
+        raise ValueError(f"controller {name!r} has no parameter {', '.join(map(repr, bad))}: its parameters are "
                          f"{allowed}")
-    return CCDriver(**params)
+    return cls(**params)

@@ -39,12 +39,12 @@ arguments (``fsm_driver(reaction_time=1.0)``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
-from acc_gym_agents.controllers.cc_driver import check_params, check_rows
+from acc_gym_agents.controllers.cc_driver import build_with, check_params, check_rows
 from acc_gym_agents.controllers.linear import LinearACC, _Policy
 
 # ---- the model's numbers: value, unit, source ------------------------------------------------------------
@@ -173,9 +173,4 @@ class FSMDriver(_Policy):
 def fsm_driver(**params) -> FSMDriver:
     """The ``fsm-driver`` controller: :class:`FSMDriver` with ``params`` (its fields); an unknown
     name is a ValueError naming it."""
-    allowed = sorted(f.name for f in fields(FSMDriver))
-    bad = sorted(set(params) - set(allowed))
-    if bad:
-        raise ValueError(f"controller 'fsm-driver' has no parameter {', '.join(map(repr, bad))}: its parameters "
-                         f"are {allowed}")
-    return FSMDriver(**params)
+    return build_with(FSMDriver, "fsm-driver", params)
