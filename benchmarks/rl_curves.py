@@ -17,6 +17,10 @@ once, each in its own process; results do not depend on N), and writes
 * ``--png`` (default ``agents/rl/curves.png``): mean score and share qualified against steps,
   one panel per env id, a line per run.
 
+``--twins ID ...`` adds, for each trained run, the curve of each id whose tuned entry is the
+run's own (the ``-v1`` ids): the run's checkpoints scored on that id's own scenarios
+(:func:`twin_curve`), so the same policy is not trained twice.
+
 ``--plot-only`` redraws the PNG from the JSON; ``--table`` prints its runs as Markdown (every
 seed's held-out results, then the median and min-max over seeds). Runs whose directory already holds a
 finished ``manifest.json`` are read, not retrained (``--retrain`` forces it).
@@ -85,6 +89,42 @@ def curve(algo: str, env_id: str, seed: int, runs: Path, eval_freq: int | None, 
         if others:  # the same final policy on the other ids (a -v1 policy runs on any: it derives its features)
             entry["heldout_other_envs"] = {e: score(e) for e in others}
     return entry
+
+
+def twin_curve(entry: dict, twin_env: str, runs: Path) -> dict:
+    """The curve of ``twin_env`` for the run behind ``entry``, without training it again: when the
+    two ids' tuned entries are the same (the ``-v1`` ids train on the same mixture, drivers and
+    reward from rl-zoo3's ``env_kwargs``; ``acc-gym train`` gives the same policy for both), only
+    the checkpoint evaluations differ, each on its id's own scenarios. So each saved checkpoint
+    of the run is scored on ``twin_env``'s scenarios with the run's evaluation seed and episodes
+    (its numpy actor; ``acc-gym train`` scores its torch model, which can differ in the last bits
+    of an action), and the held-out results are the run's own on the twin id. ``trained_as``
+    names the run."""
+    from acc_gym.evaluation.runner import evaluate
+    from acc_gym_agents.rl import hyperparams as hp
+
+    algo, env_id = entry["algo"], entry["env_id"]
+    if hp.load(algo).get(twin_env) != hp.load(algo).get(env_id):
+        raise SystemExit(f"{twin_env} and {env_id} have different {algo} entries: train {twin_env} itself")
+    out = runs / run_name(algo, env_id, entry["seed"])
+    steps, scores, quals, colls = [], [], [], []
+    for step in entry["steps"]:
+        s = evaluate(str(out / "checkpoints" / f"step_{step:09d}"), twin_env, episodes=entry["eval_episodes"],
+                     seed=entry["eval_seed"])
+        steps.append(step)
+        scores.append(s["mean_score"])
+        quals.append(s["share_qualified"])
+        colls.append(s["collisions"])
+    twin = {**entry, "env_id": twin_env, "trained_as": out.name, "steps": steps, "mean_score": scores,
+            "share_qualified": quals, "collisions": colls, "last_mean_score": scores[-1],
+            "best_mean_score": max(scores), "last_within_5_of_best": max(scores) - scores[-1] <= 5.0}
+    held = {entry["env_id"]: entry.get("heldout"), **entry.get("heldout_other_envs", {})}
+    twin.pop("heldout", None)
+    twin.pop("heldout_other_envs", None)
+    if held.get(twin_env) is not None:
+        twin["heldout"] = held[twin_env]
+        twin["heldout_other_envs"] = {e: h for e, h in held.items() if e != twin_env and h is not None}
+    return twin
 
 
 def table(data: dict) -> str:
@@ -169,6 +209,9 @@ def main(argv=None) -> int:
                     metavar="ENV=N")
     ap.add_argument("--heldout-envs", nargs="+", default=[],
                     help="also score each final policy on these env ids (held-out seed, --heldout-episodes)")
+    ap.add_argument("--twins", nargs="+", default=[],
+                    help="env ids whose tuned entry equals a trained id's: their curves are that run's checkpoints "
+                         "scored on their own scenarios (no second training; see twin_curve)")
     ap.add_argument("--jobs", type=int, default=1,
                     help="runs trained at once, each in its own process on one torch thread (at most the cores)")
     ap.add_argument("--json", default=str(DEFAULT_JSON))
@@ -217,6 +260,11 @@ def main(argv=None) -> int:
         with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
             for fut in as_completed([pool.submit(_curve_job, job) for job in jobs]):
                 record(fut.result())
+    for c in [c for c in data["curves"] if (c["algo"], c["env_id"], c["seed"]) in
+              {(j["algo"], j["env_id"], j["seed"]) for j in jobs}]:
+        for twin_env in args.twins:
+            if twin_env != c["env_id"]:
+                record(twin_curve(c, twin_env, Path(args.runs)))
     data["curves"].sort(key=key)
     from acc_gym_agents.rl.train import _versions
 

@@ -172,3 +172,26 @@ def test_bench_env_peers_reports_the_column_ratio_or_why_not():
     assert out["cavsandbox_column_vehicle_steps_per_s"] > 0
     assert out["column_ratio_cavsandbox"] == pytest.approx(out["column_vehicle_steps_per_s"]
                                                           / out["cavsandbox_column_vehicle_steps_per_s"])
+
+
+def test_rl_curves_twin_curve_equals_training_the_twin_id(tmp_path):
+    """benchmarks/rl_curves.py --twins: a -v1 run's checkpoints scored on the other -v1 id's own
+    scenarios give that id's curve as training it (same seed, same tuned entry) gives it."""
+    pytest.importorskip("stable_baselines3", reason="needs the rl extra (pip install '.[rl]')")
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        import rl_curves
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    kw = dict(seed=3, runs=tmp_path, eval_freq=4096, eval_episodes=3, heldout=None, heldout_episodes={},
+              timesteps=4096)
+    cf = rl_curves.curve("ppo", "acc_gym/CarFollowing-v1", **kw)
+    sl = rl_curves.curve("ppo", "acc_gym/SingleLane-v1", **kw)
+    twin = rl_curves.twin_curve(cf, "acc_gym/SingleLane-v1", tmp_path)
+    assert twin["env_id"] == "acc_gym/SingleLane-v1" and twin["trained_as"] == "ppo_CarFollowing-v1_s3"
+    assert twin["steps"] == sl["steps"] and twin["collisions"] == sl["collisions"]
+    assert twin["mean_score"] == pytest.approx(sl["mean_score"], abs=0.05)
+    assert twin["share_qualified"] == sl["share_qualified"]
+    assert twin["mean_score"] != cf["mean_score"]  # scored on the single-lane scenarios, not car-following's
+    with pytest.raises(SystemExit, match="different ppo entries"):
+        rl_curves.twin_curve(cf, "acc_gym/CarFollowing-v0", tmp_path)

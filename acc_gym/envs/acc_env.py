@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 import gymnasium as gym
@@ -42,6 +43,25 @@ def default_reward(config: EnvConfig):
     """The reward an env uses without ``reward_fn``: :class:`CriteriaReward` for version 0,
     :class:`MarginReward` from version 1."""
     return MarginReward() if config.version >= 1 else CriteriaReward()
+
+
+def make_reward(reward_fn, config: EnvConfig):
+    """The reward an env's ``reward_fn=`` asks for: None is :func:`default_reward`; a mapping
+    is the version's default reward with these weights (``{"overspeed": 1.0}`` on a ``-v1``
+    id is ``MarginReward(overspeed=1.0)``; a key it does not have is a ``ValueError`` naming
+    it), so that a config file (rl-zoo3's ``env_kwargs``) can set them; anything else must be
+    callable (``reward_fn(StepIndicators) -> (reward, terms)``)."""
+    if reward_fn is None:
+        return default_reward(config)
+    if isinstance(reward_fn, Mapping):
+        from acc_gym._validation import from_mapping
+
+        kind = type(default_reward(config))
+        return from_mapping(kind, dict(reward_fn), f"{kind.__name__} (reward_fn)")
+    if not callable(reward_fn):
+        raise TypeError(f"reward_fn must be a callable, a mapping of the default reward's weights or None, "
+                        f"got {type(reward_fn).__name__}")
+    return reward_fn
 
 
 def action_to_accel(action: np.ndarray, config: EnvConfig) -> np.ndarray:
@@ -275,11 +295,15 @@ class ACCEnv(gym.Env):
       the others draw what their v0 draws. The v0 ids are unchanged (stored reference
       episodes, ``tests/envs/test_v0_reference.py``). Provisional until issue 33's shipped
       policies are trained on it: a change before acc-gym 0.8.0 is listed here.
-    * acc-gym 0.11.0 (issue 35), opt-in and no id's default: ``scenario_generator="counter"``
+    * acc-gym 0.10.0 (issue 35), opt-in and no id's default: ``scenario_generator="counter"``
       draws each scenario's parameters with a compiled counter-based generator keyed by the
       scenario's ``(id, seed)`` (:class:`~acc_gym.envs.config.CounterScenarioSampler`,
       :mod:`acc_gym.scenarios.batched`; a vector env draws the scenes it resets in one
       call): the same ``(id, seed)`` sequence and laws as the default, other numbers.
+    * acc-gym 0.11.0 (issue 33), no id changed: ``MarginReward`` has two more terms, ``reach``
+      and ``overspeed``, both of weight 0 in the ``-v1`` ids' reward (so its values are as
+      before; ``info["rewards"]`` lists them, at 0); ``reward_fn=`` also takes a mapping of
+      the default reward's weights (the shipped training settings set ``reach``).
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 5}
@@ -293,7 +317,7 @@ class ACCEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
         self.observation_space = observation_space(self.config)
         self.core = EpisodeBatch(1, self.config, make_sampler(self.config, scenario_generator),
-                                 reward_fn or default_reward(self.config), mpc_settings)
+                                 make_reward(reward_fn, self.config), mpc_settings)
         self.core.obs_bounds = self._bounds = (self.observation_space.low.astype(float),
                                                self.observation_space.high.astype(float))
         self._accel_max, self._decel_max = float(self.config.accel_max), float(self.config.decel_max)

@@ -38,7 +38,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from acc_gym.envs.acc_env import (action_to_accel, build_named, check_actions, default_reward, make_config,
+from acc_gym.envs.acc_env import (action_to_accel, build_named, check_actions, make_config, make_reward,
                                   observation_space)
 from acc_gym.envs.config import CounterScenarioSampler, EnvConfig, ScenarioSampler, make_sampler
 from acc_gym.envs.core import EpisodeBatch
@@ -82,7 +82,7 @@ class ACCVectorEnv(VectorEnv):
                                   workers_context)
             return
         self.core = EpisodeBatch(self.num_envs, self.config, make_sampler(self.config, scenario_generator),
-                                 reward_fn or default_reward(self.config), mpc_settings)
+                                 make_reward(reward_fn, self.config), mpc_settings)
         space = self.single_observation_space
         self.core.obs_bounds = self._bounds = (space.low.astype(float), space.high.astype(float))
         self._rngs = [seeding.np_random()[0] for _ in range(self.num_envs)]

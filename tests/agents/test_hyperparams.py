@@ -208,3 +208,21 @@ def test_documented_curves_are_consistent_and_redraw(tmp_path):
     subprocess.run([sys.executable, str(ROOT / "benchmarks" / "rl_curves.py"), "--plot-only", "--json", str(CURVES),
                     "--png", str(png)], check=True, capture_output=True)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_v1_entries_train_with_the_reward_the_reward_tests_check():
+    """PPO's -v1 training reward is the one tests/envs/test_margin_reward.py ranks behaviours
+    with (SHIPPED: reach 0.5; SAC's entries, 0.10.0's, train with the ids' own reward), and
+    both -v1 ids' entries are the same for each algorithm (one run serves both)."""
+    import gymnasium as gym
+
+    import acc_gym  # noqa: F401
+    from acc_gym.envs.reward import MarginReward
+
+    for algo in ("ppo", "sac"):
+        entries = hp.load(algo)
+        assert entries["acc_gym/CarFollowing-v1"] == entries["acc_gym/SingleLane-v1"]
+    weights = hp.env_kwargs(hp.load("ppo")["acc_gym/CarFollowing-v1"])["reward_fn"]
+    env = gym.make("acc_gym/CarFollowing-v1", reward_fn=weights)
+    assert env.unwrapped.core.reward_fn == MarginReward(reach=0.5)
+    assert "reward_fn" not in hp.env_kwargs(hp.load("sac")["acc_gym/CarFollowing-v1"])

@@ -698,3 +698,42 @@ def test_a_declared_time_gap_judges_the_episode_and_bad_ones_are_named():
     for bad in (float("nan"), -1.0, 0.0, "1.5", True):
         with pytest.raises(ValueError, match=r"options\['time_gap'\].*declared time gap.*> 0"):
             cf_env.reset(seed=0, options={"time_gap": bad})
+
+
+def test_reward_fn_given_as_weights_sets_the_default_rewards_weights():
+    """``reward_fn={...}`` (what a config file such as rl-zoo3's env_kwargs can hold) is the
+    version's default reward with these weights, in the single and the vector env; an
+    unknown weight or a value that is neither callable nor a mapping is named."""
+    from acc_gym.envs.reward import CriteriaReward, MarginReward
+
+    full = np.ones(1, dtype=np.float32)
+    env = gymnasium.make("acc_gym/SingleLane-v1", reward_fn={"overspeed": 1.0})
+    assert env.unwrapped.core.reward_fn == MarginReward(overspeed=1.0)
+    env.reset(seed=0, options={"scenario": "singlelane/1/free-flow"})
+    charged = []
+    for _ in range(40):  # full throttle in free flow: past the set speed, the overspeed term charges
+        obs, _, term, trunc, info = env.step(full)
+        over = max(obs[0] - obs[5], 0.0) / (0.1 * obs[5])
+        charged.append((info["rewards"]["overspeed"], -min(over, 5.0)))
+        if term or trunc:
+            break
+    assert any(c < -1.0 for c, _ in charged)
+    assert [c for c, _ in charged] == pytest.approx([h for _, h in charged], abs=1e-4)  # obs is float32
+    plain = gymnasium.make("acc_gym/SingleLane-v1")
+    plain.reset(seed=0, options={"scenario": "singlelane/1/free-flow"})
+    assert plain.step(full)[4]["rewards"]["overspeed"] == 0.0  # off in the id's own reward
+    vec = gymnasium.make_vec("acc_gym/CarFollowing-v1", num_envs=2, vectorization_mode="vector_entry_point",
+                             reward_fn={"lag": 0.25})
+    assert vec.core.reward_fn == MarginReward(lag=0.25)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        assert gymnasium.make("acc_gym/CarFollowing-v0", reward_fn={"band": 2.0}).unwrapped.core.reward_fn == \
+            CriteriaReward(band=2.0)
+        with pytest.raises(ValueError, match="overspeed"):  # the v0 reward has no such weight
+            gymnasium.make("acc_gym/CarFollowing-v0", reward_fn={"overspeed": 1.0})
+    with pytest.raises(ValueError, match="overspeeed"):
+        gymnasium.make("acc_gym/CarFollowing-v1", reward_fn={"overspeeed": 1.0})
+    with pytest.raises(ValueError, match="overspeed.*-1"):
+        gymnasium.make("acc_gym/CarFollowing-v1", reward_fn={"overspeed": -1.0})
+    with pytest.raises(TypeError, match="reward_fn.*str"):
+        gymnasium.make("acc_gym/CarFollowing-v1", reward_fn="margin")

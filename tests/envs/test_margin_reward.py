@@ -14,6 +14,8 @@ from acc_gym.leaderboard.isolation import episode_points
 from acc_gym_agents.controllers.linear import LinearACC
 
 TAU = 1.5  # [s]
+# the reward the shipped -v1 training settings use (agents/rl/hyperparams/*.yml: env_kwargs reward_fn)
+SHIPPED = MarginReward(reach=0.5)
 B = 8.0  # [m/s^2]
 
 
@@ -69,9 +71,43 @@ def test_terms_equal_hand_computations():
     assert t["collision"] == pytest.approx(-(100 + 5.58 * 100))
 
 
-def test_no_step_costs_more_than_max_step_cost():
+def test_the_overspeed_term_equals_hand_computations():
+    """Off by default (the -v1 ids' reward as released); with a weight it charges every step
+    above the set speed, following or not, per ``overspeed_scale`` of the set speed, up to 5."""
+    assert reward(state(30.0))[1]["overspeed"] == 0.0  # the default weight is 0
+    fn = MarginReward(overspeed=1.0)
+    # free at 30 m/s, set 25: (30 - 25) / (0.1 * 25) = 2 -> -2; the speed term is as without it
+    _, t = reward(state(30.0), fn)
+    assert t["overspeed"] == pytest.approx(-2.0) and t["speed"] == reward(state(30.0))[1]["speed"]
+    # following a lead at 28 m/s at 28 m/s (set 25): charged too, (3 / 2.5) = 1.2
+    assert reward(state(28.0, 60.0, 28.0), fn)[1]["overspeed"] == pytest.approx(-1.2)
+    # at or below the set speed: nothing; far above: capped at 5 (x w = 2, scale 0.05: 5 m/s over -> -2 * 4)
+    assert reward(state(25.0), fn)[1]["overspeed"] == 0.0 and reward(state(10.0, 50.0, 10.0), fn)[1]["overspeed"] == 0.0
+    assert reward(state(60.0), fn)[1]["overspeed"] == pytest.approx(-5.0)
+    assert reward(state(30.0), MarginReward(overspeed=2.0, overspeed_scale=0.05))[1]["overspeed"] == pytest.approx(-8.0)
+    assert fn.max_step_cost == pytest.approx(MarginReward().max_step_cost + 5.0)
+
+
+def test_the_reach_term_equals_hand_computations():
+    """Off by default; with a weight, a car-following sample beyond the band's far edge
+    (Q > 0.2 Gapsafe) is charged in proportion to how far, up to twice the band's width."""
+    assert reward(state(20.0, 40.0, 20.0))[1]["reach"] == 0.0
+    fn = MarginReward(reach=0.5)
+    # following at 20 m/s behind a lead at 20 m/s: Gapsafe = 30 m, the band is 30-36 m
+    assert reward(state(20.0, 33.0, 20.0), fn)[1]["reach"] == 0.0  # inside the band
+    assert reward(state(20.0, 39.0, 20.0), fn)[1]["reach"] == pytest.approx(-0.5 * (9 / 30 - 0.2) / 0.2)
+    assert reward(state(20.0, 60.0, 20.0), fn)[1]["reach"] == pytest.approx(-0.5)  # capped
+    assert reward(state(20.0, 25.0, 20.0), fn)[1]["reach"] == 0.0  # inside Gapsafe: the response term's
+    assert reward(state(25.0), fn)[1]["reach"] == 0.0  # nothing to follow
+    # it makes the dead zone between the band (36 m) and the lag's start (1.2 * 1.5 * 20 + 5 = 41 m) slope
+    r = [reward(state(20.0, g, 20.0), fn)[0] for g in (36.5, 38.0, 40.0)]
+    assert r[0] > r[1] > r[2] and [reward(state(20.0, g, 20.0))[0] for g in (36.5, 38.0, 40.0)] == [0.0] * 3
+
+
+@pytest.mark.parametrize("fn", [MarginReward(), SHIPPED, MarginReward(overspeed=1.0, reach=0.5)],
+                         ids=["default", "shipped", "every term"])
+def test_no_step_costs_more_than_max_step_cost(fn):
     rng = np.random.default_rng(0)
-    fn = MarginReward()
     worst = 0.0
     for _ in range(3000):
         s = state(rng.uniform(0, 70), rng.choice([np.inf, rng.uniform(0.1, 400)]), rng.uniform(0, 40),
@@ -82,13 +118,14 @@ def test_no_step_costs_more_than_max_step_cost():
     assert -fn.max_step_cost - 1e-9 <= worst < -0.8 * fn.max_step_cost
 
 
+@pytest.mark.parametrize("fn", [MarginReward(), SHIPPED], ids=["default", "shipped"])
 @pytest.mark.parametrize("where", ["parked behind a moving lead", "parked, nothing ahead", "300 m behind"])
-def test_the_reward_has_a_gradient_where_the_v0_reward_has_none(where):
+def test_the_reward_has_a_gradient_where_the_v0_reward_has_none(where, fn):
     """Finite differences of the reward in the ego's speed (the state's indicators recomputed)."""
     gap, v_lead, v = {"parked behind a moving lead": (60.0, 15.0, 0.0), "parked, nothing ahead": (np.inf, 0.0, 0.0),
                       "300 m behind": (300.0, 15.0, 10.0)}[where]
     dv = 0.5
-    grad = (reward(state(v + dv, gap, v_lead))[0] - reward(state(v, gap, v_lead))[0]) / dv
+    grad = (reward(state(v + dv, gap, v_lead), fn)[0] - reward(state(v, gap, v_lead), fn)[0]) / dv
     assert grad > 0.01, grad  # faster is better: towards the set speed, closing in
     v0 = CriteriaReward()
     flat = (reward(state(v + dv, gap, v_lead), v0)[0] - reward(state(v, gap, v_lead), v0)[0]) / dv
@@ -121,10 +158,10 @@ BEHAVIOURS = {"acc": lambda: load_controller("acc"), "cacc": lambda: load_contro
               "full throttle": lambda: Constant(1.0)}
 
 
-def returns_and_points(env_id, episodes):
+def returns_and_points(env_id, episodes, fn):
     out = {}
     for name, make in BEHAVIOURS.items():
-        env, policy, ret, pts = gym.make(env_id, reward_fn=MarginReward()), make(), [], []
+        env, policy, ret, pts = gym.make(env_id, reward_fn=fn), make(), [], []
         for seed in range(episodes):
             obs, _ = env.reset(seed=seed)
             total, done = 0.0, False
@@ -138,13 +175,14 @@ def returns_and_points(env_id, episodes):
     return out
 
 
+@pytest.mark.parametrize("fn", [MarginReward(), SHIPPED], ids=["default", "shipped"])
 @pytest.mark.parametrize("env_id, episodes", [("acc_gym/CarFollowing-v0", 6), ("acc_gym/SingleLane-v0", 12)])
-def test_returns_rank_the_behaviours_as_their_points_do(env_id, episodes):
+def test_returns_rank_the_behaviours_as_their_points_do(env_id, episodes, fn):
     """Every pair of behaviours whose mean points differ by 10 or more is ordered the same way
     by mean return (pairs closer in points, which a dozen episodes cannot rank, are not
     compared). On paper 003's test: cacc 79, acc 77, idm / slow follower / parked 45,
     tailgater 30, full throttle 0 (a collision)."""
-    res = returns_and_points(env_id, episodes)
+    res = returns_and_points(env_id, episodes, fn)
     checked = 0
     for a, (ret_a, pts_a) in res.items():
         for b, (ret_b, pts_b) in res.items():
