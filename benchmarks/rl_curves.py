@@ -260,8 +260,8 @@ def main(argv=None) -> int:
         with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
             for fut in as_completed([pool.submit(_curve_job, job) for job in jobs]):
                 record(fut.result())
-    for c in [c for c in data["curves"] if (c["algo"], c["env_id"], c["seed"]) in
-              {(j["algo"], j["env_id"], j["seed"]) for j in jobs}]:
+    trained = {(j["algo"], j["env_id"], j["seed"]) for j in jobs}
+    for c in [c for c in data["curves"] if key(c) in trained]:
         for twin_env in args.twins:
             if twin_env != c["env_id"]:
                 record(twin_curve(c, twin_env, Path(args.runs)))

@@ -177,7 +177,7 @@ def test_bench_env_peers_reports_the_column_ratio_or_why_not():
 def test_rl_curves_twin_curve_equals_training_the_twin_id(tmp_path):
     """benchmarks/rl_curves.py --twins: a -v1 run's checkpoints scored on the other -v1 id's own
     scenarios give that id's curve as training it (same seed, same tuned entry) gives it."""
-    pytest.importorskip("stable_baselines3", reason="needs the rl extra (pip install '.[rl]')")
+    pytest.importorskip("stable_baselines3", reason="stable-baselines3 is not installed (pip install '.[rl]' or '.[test]')")
     sys.path.insert(0, str(ROOT / "benchmarks"))
     try:
         import rl_curves

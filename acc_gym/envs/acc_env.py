@@ -42,7 +42,11 @@ def observation_space(config: EnvConfig) -> spaces.Box:
 def default_reward(config: EnvConfig):
     """The reward an env uses without ``reward_fn``: :class:`CriteriaReward` for version 0,
     :class:`MarginReward` from version 1."""
-    return MarginReward() if config.version >= 1 else CriteriaReward()
+    return _default_reward_type(config)()
+
+
+def _default_reward_type(config: EnvConfig) -> type:
+    return MarginReward if config.version >= 1 else CriteriaReward
 
 
 def make_reward(reward_fn, config: EnvConfig):
@@ -56,7 +60,7 @@ def make_reward(reward_fn, config: EnvConfig):
     if isinstance(reward_fn, Mapping):
         from acc_gym._validation import from_mapping
 
-        kind = type(default_reward(config))
+        kind = _default_reward_type(config)
         return from_mapping(kind, dict(reward_fn), f"{kind.__name__} (reward_fn)")
     if not callable(reward_fn):
         raise TypeError(f"reward_fn must be a callable, a mapping of the default reward's weights or None, "

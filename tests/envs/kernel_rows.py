@@ -1,5 +1,7 @@
-"""Random step-kernel rows for the envs' fast-path tests (shared by the -v0 and -v1 tests)."""
+"""Random step-kernel rows and random-action episodes for the envs' fast-path tests (shared
+by the -v0 and -v1 tests)."""
 
+import gymnasium
 import numpy as np
 
 from acc_gym.envs import _kernel as K
@@ -20,3 +22,18 @@ def random_rows(rng, n, v_max=35.0, a_range=(-9.0, 4.0), jerk_sd=20.0, gap_max=1
     fl[K.F_ALEAD] = rng.uniform(-5.0, 3.0, n)
     bo = rng.random((K.N_BOOL, n)) < 0.5
     return fl, bo
+
+
+def rollout(env_id, reward_fn, steps, rng_seed=3, reset_seed=4):
+    """``[reset, step, step, ..., reset, ...]``: ``steps`` uniform random actions in
+    ``gymnasium.make(env_id, reward_fn=reward_fn)``, reset when an episode ends (its
+    ``reset()`` output appended after the last step)."""
+    env = gymnasium.make(env_id, reward_fn=reward_fn)
+    rng = np.random.default_rng(rng_seed)
+    out = [env.reset(seed=reset_seed)]
+    for _ in range(steps):
+        step = env.step(rng.uniform(-1.0, 1.0, 1).astype(np.float32))
+        out.append(step)
+        if step[2] or step[3]:
+            out.append(env.reset())
+    return out

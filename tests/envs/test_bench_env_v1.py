@@ -28,7 +28,7 @@ def test_bench_env_times_the_v1_cases():
 
 
 def test_bench_env_peers_reports_the_v1_ratio():
-    pytest.importorskip("libsumo", reason="libsumo is not installed (pip install '.[bench]'): no SUMO peer to time")
+    pytest.importorskip("libsumo", reason="libsumo is not installed (pip install '.[bench]' or '.[test]'): no SUMO peer to time")
     out = _bench("--steps", "100", "--vector-steps", "2", "--num-envs", "4", "--cases", "env_v1", "--peers")
     assert out["env_v1_idm_steps_per_s"] > 0 and out["sumo_steps_per_s"] > 0  # env_v1_idm is added for the ratio
     assert out["sumo_ratio_v1"] == pytest.approx(out["env_v1_idm_steps_per_s"] / out["sumo_steps_per_s"])

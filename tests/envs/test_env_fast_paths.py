@@ -21,7 +21,7 @@ from acc_gym.envs import _kernel as K
 from acc_gym.envs.acc_env import action_to_accel
 from acc_gym.envs.config import EnvConfig
 from acc_gym.envs.reward import CriteriaReward, StepIndicators
-from kernel_rows import random_rows  # tests/envs/kernel_rows.py
+from kernel_rows import random_rows, rollout  # tests/envs/kernel_rows.py
 
 
 def numpy_action_to_accel(action, config):
@@ -100,18 +100,7 @@ class IndicatorReward:
 
 
 def test_default_reward_fast_path_equals_the_indicators_path_end_to_end():
-    def run(reward_fn):
-        env = gymnasium.make("acc_gym/SingleLane-v0", reward_fn=reward_fn)
-        rng = np.random.default_rng(3)
-        out = [env.reset(seed=4)]
-        for _ in range(300):
-            step = env.step(rng.uniform(-1.0, 1.0, 1).astype(np.float32))
-            out.append(step)
-            if step[2] or step[3]:
-                out.append(env.reset())
-        return out
-
-    fast, slow = run(None), run(IndicatorReward())
+    fast, slow = (rollout("acc_gym/SingleLane-v0", fn, 300) for fn in (None, IndicatorReward()))
     assert len(fast) == len(slow)
     for a, b in zip(fast, slow):
         assert np.array_equal(a[0], b[0])
