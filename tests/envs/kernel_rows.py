@@ -5,6 +5,7 @@ import gymnasium
 import numpy as np
 
 from acc_gym.envs import _kernel as K
+from acc_gym.envs.reward import StepIndicators
 
 
 def random_rows(rng, n, v_max=35.0, a_range=(-9.0, 4.0), jerk_sd=20.0, gap_max=150.0):
@@ -37,3 +38,13 @@ def rollout(env_id, reward_fn, steps, rng_seed=3, reset_seed=4):
         if step[2] or step[3]:
             out.append(env.reset())
     return out
+
+
+def indicators(fl, bo, set_speed, tau1, steps_left=None, a_comfort=2.5):
+    """The :class:`StepIndicators` of kernel rows ``(fl, bo)``, as the environment core builds
+    them for a reward that takes the indicators path."""
+    return StepIndicators(v=fl[K.F_V], a=fl[K.F_A], jerk=fl[K.F_JERK], set_speed=set_speed, has_lead=bo[K.B_HAS],
+                          gap=fl[K.F_GAP], gap_safe=fl[K.F_GS], q=fl[K.F_Q], in_band=bo[K.B_IN_BAND],
+                          following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=bo[K.B_VIOLATION],
+                          collision=bo[K.B_COLLISION], a_comfort=a_comfort, followable=bo[K.B_FOLLOWABLE],
+                          v_lead=fl[K.F_VLEAD], tau1=tau1, steps_left=steps_left)

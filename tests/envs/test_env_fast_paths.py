@@ -20,8 +20,8 @@ import acc_gym  # noqa: F401  (registers the ids)
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.acc_env import action_to_accel
 from acc_gym.envs.config import EnvConfig
-from acc_gym.envs.reward import CriteriaReward, StepIndicators
-from kernel_rows import random_rows, rollout  # tests/envs/kernel_rows.py
+from acc_gym.envs.reward import CriteriaReward
+from kernel_rows import indicators, random_rows, rollout  # tests/envs/kernel_rows.py
 
 
 def numpy_action_to_accel(action, config):
@@ -49,11 +49,7 @@ def test_reward_from_criteria_rows_equals_the_indicators_path(reward):
     n = 300
     fl, bo = random_rows(rng, n)
     set_speed, tau1 = rng.uniform(5.0, 40.0, n), rng.uniform(0.5, 3.0, n)
-    ind = StepIndicators(v=fl[K.F_V], a=fl[K.F_A], jerk=fl[K.F_JERK], set_speed=set_speed, has_lead=bo[K.B_HAS],
-                         gap=fl[K.F_GAP], gap_safe=fl[K.F_GS], q=fl[K.F_Q], in_band=bo[K.B_IN_BAND],
-                         following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=bo[K.B_VIOLATION],
-                         collision=bo[K.B_COLLISION], a_comfort=2.5, followable=bo[K.B_FOLLOWABLE],
-                         v_lead=fl[K.F_VLEAD], tau1=tau1)
+    ind = indicators(fl, bo, set_speed, tau1)
     r_slow, terms_slow = reward(ind)
     r_fast, terms_fast = reward.from_criteria(fl, bo, set_speed, tau1, 2.5)
     assert np.array_equal(r_fast, r_slow)

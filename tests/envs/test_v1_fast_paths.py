@@ -20,7 +20,7 @@ import acc_gym  # noqa: F401  (registers the ids)
 import kernel_rows  # tests/envs/kernel_rows.py
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.observation import B0, B1, append_features, feature_bounds
-from acc_gym.envs.reward import MarginReward, StepIndicators
+from acc_gym.envs.reward import MarginReward
 
 V1 = ["acc_gym/CarFollowing-v1", "acc_gym/SingleLane-v1", "acc_gym/NCAP-v1", "acc_gym/StopAndGo-v1"]
 
@@ -44,11 +44,7 @@ def test_margin_reward_from_criteria_rows_equals_the_numpy_reference(reward):
     fl, bo = random_rows(rng, n)
     set_speed, tau1 = rng.uniform(5.0, 40.0, n), rng.uniform(0.5, 3.0, n)
     steps, k = rng.integers(1, 400, n), rng.integers(0, 420, n)  # some past their budget (steps left < 0)
-    ind = StepIndicators(v=fl[K.F_V], a=fl[K.F_A], jerk=fl[K.F_JERK], set_speed=set_speed, has_lead=bo[K.B_HAS],
-                         gap=fl[K.F_GAP], gap_safe=fl[K.F_GS], q=fl[K.F_Q], in_band=bo[K.B_IN_BAND],
-                         following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=bo[K.B_VIOLATION],
-                         collision=bo[K.B_COLLISION], a_comfort=2.5, followable=bo[K.B_FOLLOWABLE],
-                         v_lead=fl[K.F_VLEAD], tau1=tau1, steps_left=steps - k)
+    ind = kernel_rows.indicators(fl, bo, set_speed, tau1, steps_left=steps - k)
     r_slow, terms_slow = reward(ind)
     r_fast, terms_fast = reward.from_criteria(fl, bo, set_speed, tau1, steps, k, 2.5)
     assert list(terms_fast) == list(terms_slow) == list(MarginReward.TERMS) == list(K.MARGIN_TERMS)
