@@ -104,14 +104,14 @@ def twin_curve(entry: dict, twin_env: str, runs: Path) -> dict:
     from acc_gym_agents.rl import hyperparams as hp
 
     algo, env_id = entry["algo"], entry["env_id"]
-    if hp.load(algo).get(twin_env) != hp.load(algo).get(env_id):
+    entries = hp.load(algo)
+    if entries.get(twin_env) != entries.get(env_id):
         raise SystemExit(f"{twin_env} and {env_id} have different {algo} entries: train {twin_env} itself")
     out = runs / run_name(algo, env_id, entry["seed"])
-    steps, scores, quals, colls = [], [], [], []
-    for step in entry["steps"]:
+    steps, scores, quals, colls = list(entry["steps"]), [], [], []
+    for step in steps:
         s = evaluate(str(out / "checkpoints" / f"step_{step:09d}"), twin_env, episodes=entry["eval_episodes"],
                      seed=entry["eval_seed"])
-        steps.append(step)
         scores.append(s["mean_score"])
         quals.append(s["share_qualified"])
         colls.append(s["collisions"])

@@ -248,11 +248,8 @@ class EpisodeBatch:
         if default or margin:
             terms = dict(zip(names, terms_arr))
         else:
-            ind = StepIndicators(v=fl[K.F_V], a=fl[K.F_A], jerk=fl[K.F_JERK], set_speed=self.set_speed,
-                                 has_lead=bo[K.B_HAS], gap=fl[K.F_GAP], gap_safe=gs, q=q, in_band=bo[K.B_IN_BAND],
-                                 following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=violation,
-                                 collision=collision, a_comfort=cfg.a_x_comfort, followable=bo[K.B_FOLLOWABLE],
-                                 v_lead=fl[K.F_VLEAD], tau1=self.tau1, steps_left=self.steps - w.k)
+            ind = StepIndicators.from_rows(fl, bo, self.set_speed, self.tau1, cfg.a_x_comfort,
+                                           steps_left=self.steps - w.k)
             reward, terms = self.reward_fn(ind)
             reward = np.asarray(reward, dtype=float)
             if reward.shape != (n,):

@@ -66,6 +66,20 @@ class StepIndicators:
     tau1: np.ndarray | None = None  # [s]
     steps_left: np.ndarray | None = None  # steps the scenario still had to run after this one
 
+    @classmethod
+    def from_rows(cls, fl: np.ndarray, bo: np.ndarray, set_speed: np.ndarray, tau1: np.ndarray,
+                  a_comfort: float = 3.0, steps_left: np.ndarray | None = None) -> "StepIndicators":
+        """The indicators of the rows of :func:`acc_gym.envs._kernel.criteria`'s outputs ``fl``
+        and ``bo`` (views, not copies): what the environment core hands a reward that is not
+        built in."""
+        from acc_gym.envs import _kernel as K
+
+        return cls(v=fl[K.F_V], a=fl[K.F_A], jerk=fl[K.F_JERK], set_speed=set_speed, has_lead=bo[K.B_HAS],
+                   gap=fl[K.F_GAP], gap_safe=fl[K.F_GS], q=fl[K.F_Q], in_band=bo[K.B_IN_BAND],
+                   following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=bo[K.B_VIOLATION],
+                   collision=bo[K.B_COLLISION], a_comfort=a_comfort, followable=bo[K.B_FOLLOWABLE],
+                   v_lead=fl[K.F_VLEAD], tau1=tau1, steps_left=steps_left)
+
 
 def _check_weights(reward, positive: tuple[str, ...]) -> None:
     """Every field of a reward dataclass a finite number >= 0, those in ``positive`` > 0."""

@@ -22,7 +22,7 @@ def test_two_local_workers_match_one(reference, tmp_path):
 
 
 def test_dask_local_cluster_matches_one_worker(reference, tmp_path):
-    distributed = pytest.importorskip("distributed", reason="Dask distributed is not installed (pip install '.[dist]')")
+    distributed = pytest.importorskip("distributed", reason="Dask distributed is not installed (pip install '.[dist]' or '.[test]')")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp", host="127.0.0.1",
                                   dashboard_address=None) as cluster:
         # by address: run_campaign makes its own Client and closes it
@@ -46,7 +46,7 @@ def test_summary_json_is_the_returned_summary(reference):
 def test_ranking_of_controllers_is_the_same_on_every_backend(reference, tmp_path):
     """Two controllers ranked by their campaigns' mean score: one worker, a two-process pool and a
     Dask LocalCluster give the same order and the same numbers (the ranking is backend-free)."""
-    distributed = pytest.importorskip("distributed", reason="Dask distributed is not installed (pip install '.[dist]')")
+    distributed = pytest.importorskip("distributed", reason="Dask distributed is not installed (pip install '.[dist]' or '.[test]')")
 
     def ranking(**backend):
         out = {}

@@ -41,10 +41,6 @@ def rollout(env_id, reward_fn, steps, rng_seed=3, reset_seed=4):
 
 
 def indicators(fl, bo, set_speed, tau1, steps_left=None, a_comfort=2.5):
-    """The :class:`StepIndicators` of kernel rows ``(fl, bo)``, as the environment core builds
-    them for a reward that takes the indicators path."""
-    return StepIndicators(v=fl[K.F_V], a=fl[K.F_A], jerk=fl[K.F_JERK], set_speed=set_speed, has_lead=bo[K.B_HAS],
-                          gap=fl[K.F_GAP], gap_safe=fl[K.F_GS], q=fl[K.F_Q], in_band=bo[K.B_IN_BAND],
-                          following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=bo[K.B_VIOLATION],
-                          collision=bo[K.B_COLLISION], a_comfort=a_comfort, followable=bo[K.B_FOLLOWABLE],
-                          v_lead=fl[K.F_VLEAD], tau1=tau1, steps_left=steps_left)
+    """The :class:`StepIndicators` of kernel rows ``(fl, bo)``, built as the environment core
+    builds them for a reward that takes the indicators path (:meth:`StepIndicators.from_rows`)."""
+    return StepIndicators.from_rows(fl, bo, set_speed, tau1, a_comfort, steps_left=steps_left)

@@ -98,7 +98,7 @@ def test_results_do_not_depend_on_the_number_of_workers():
 
 def test_results_on_a_dask_cluster_are_those_of_one_worker():
     # the test extras install Dask; a user's install without ".[dist]" has no Dask backend to test
-    pytest.importorskip("distributed", reason="Dask distributed is not installed (pip install '.[dist]')")
+    pytest.importorskip("distributed", reason="Dask distributed is not installed (pip install '.[dist]' or '.[test]')")
     one = estimate_risk("fuzzy", "cut-in", workers=1, **SMALL)
     assert _without_time(one) == _without_time(estimate_risk("fuzzy", "cut-in", workers=2, scheduler="local",
                                                              **SMALL))

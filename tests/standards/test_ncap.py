@@ -17,7 +17,7 @@ def _has_calculator() -> bool:
 
 
 needs_calculator = pytest.mark.skipif(not _has_calculator(),
-                                      reason="Euro NCAP's rating calculator is not installed (pip install 'acc-gym[ncap]')")
+                                      reason="Euro NCAP's rating calculator is not installed (pip install '.[ncap]' or '.[test]')")
 
 
 @needs_calculator
