@@ -308,6 +308,9 @@ class ACCEnv(gym.Env):
       and ``overspeed``, both of weight 0 in the ``-v1`` ids' reward (so its values are as
       before; ``info["rewards"]`` lists them, at 0); ``reward_fn=`` also takes a mapping of
       the default reward's weights (the shipped training settings set ``reach``).
+    * acc-gym 0.13.0 (issue 33), no id changed: ``MarginReward`` has one more term,
+      ``behind`` (weight 0 in the ``-v1`` ids' reward: its values are as before;
+      ``info["rewards"]`` lists it, at 0).
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 5}

@@ -104,7 +104,32 @@ def test_the_reach_term_equals_hand_computations():
     assert r[0] > r[1] > r[2] and [reward(state(20.0, g, 20.0))[0] for g in (36.5, 38.0, 40.0)] == [0.0] * 3
 
 
-@pytest.mark.parametrize("fn", [MarginReward(), SHIPPED, MarginReward(overspeed=1.0, reach=0.5)],
+def test_the_behind_term_equals_hand_computations():
+    """Off by default; with a weight, every step far behind a followable vehicle (where the
+    speed and lag terms apply: gap > 1.2 tau1 v_lead + 5 m) costs it, and with the speed
+    term's weight, cruising there at the set speed nets nothing instead of +1."""
+    fn = MarginReward(behind=1.0)
+    # lead at 20 m/s: the lag starts at 1.2 * 1.5 * 20 + 5 = 41 m
+    assert reward(state(25.0, 80.0, 20.0))[1]["behind"] == 0.0  # default: off
+    assert reward(state(25.0, 80.0, 20.0), fn)[1]["behind"] == -1.0
+    assert reward(state(25.0, 40.0, 20.0), fn)[1]["behind"] == 0.0  # inside 41 m: following
+    assert reward(state(25.0), fn)[1]["behind"] == 0.0  # nothing in view: free driving
+    assert reward(state(20.0, 80.0, 30.0), fn)[1]["behind"] == 0.0  # lead faster than the set speed: not followable
+    r_def, t_def = reward(state(25.0, 80.0, 20.0))
+    r, t = reward(state(25.0, 80.0, 20.0), fn)
+    assert t["speed"] == 1.0 and t["speed"] + t["behind"] == 0.0 and r == pytest.approx(r_def - 1.0)
+    assert fn.max_step_cost == pytest.approx(MarginReward().max_step_cost + 1.0)
+    # far behind never pays more than the gap closed in: approaching from 80 m to the band (30-36 m) never
+    # loses reward at 41 m, where the default reward drops the speed term's +1 (the SAC plateau, docs/rl-training.md)
+    gaps = (80.0, 60.0, 42.0, 40.0, 38.0, 33.0)
+    shipped_behind = MarginReward(reach=0.5, behind=1.0)
+    walk = [reward(state(20.0, g, 20.0, set_speed=20.0), shipped_behind)[0] for g in gaps]
+    assert walk == sorted(walk) and walk[-1] == pytest.approx(2.0)
+    plain = [reward(state(20.0, g, 20.0, set_speed=20.0), SHIPPED)[0] for g in gaps]
+    assert plain[2] > plain[3]  # the default drops at the lag's start
+
+
+@pytest.mark.parametrize("fn", [MarginReward(), SHIPPED, MarginReward(overspeed=1.0, reach=0.5, behind=1.0)],
                          ids=["default", "shipped", "every term"])
 def test_no_step_costs_more_than_max_step_cost(fn):
     rng = np.random.default_rng(0)

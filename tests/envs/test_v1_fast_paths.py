@@ -36,7 +36,7 @@ def same_bits(a, b) -> bool:
 
 @pytest.mark.parametrize("reward", [MarginReward(), MarginReward(band=2.0, lag=1.5, peak=0.2, slope=0.5, jerk_scale=4.0,
                                                                  response_decel=3.0, collision=50.0, overspeed=1.5,
-                                                                 overspeed_scale=0.05, reach=0.7)],
+                                                                 overspeed_scale=0.05, reach=0.7, behind=0.9)],
                          ids=["default", "weights"])
 def test_margin_reward_from_criteria_rows_equals_the_numpy_reference(reward):
     rng = np.random.default_rng(1)
