@@ -257,7 +257,8 @@ class MarginReward:
       200k steps, and one seed of three learnt to follow in 400k. PPO
       with it approached better (median 84 % of approaches qualified, 45 % without) but two
       of five seeds met the bar's per-seed terms against four: 30 single-lane collisions,
-      every one with a vehicle changing into the lane. Not in the shipped settings.
+      each with a lane change just ahead (a cut-in, or the ego merging in behind a
+      vehicle). Not in the shipped settings.
     """
 
     band: float = 1.0
