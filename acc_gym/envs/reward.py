@@ -254,11 +254,11 @@ class MarginReward:
       reward drops by up to 1 at the lag's start, where the speed term stops). SAC sat on
       that plateau (about 1.5-2.5 Gapsafe behind at the set speed; acc-gym 0.13.0,
       docs/rl-training.md); with the term it closed in but rode the band's near edge at
-      200k steps, and one seed of three learnt to follow in 400k. PPO
-      with it approached better (median 84 % of approaches qualified, 45 % without) but two
-      of five seeds met the bar's per-seed terms against four: 30 single-lane collisions,
-      each with a lane change just ahead (a cut-in, or the ego merging in behind a
-      vehicle). Not in the shipped settings.
+      200k steps, and one seed of three learnt to follow in 400k. PPO with it approached
+      better (median 84 % of approaches qualified, 45 % without) but two of five seeds met
+      the bar's per-seed terms against four: 30 single-lane collisions, each with a lane
+      change just ahead (a cut-in, or the ego merging in behind a vehicle). Not in the
+      shipped settings.
     """
 
     band: float = 1.0

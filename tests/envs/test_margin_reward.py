@@ -115,12 +115,12 @@ def test_the_behind_term_equals_hand_computations():
     assert reward(state(25.0, 40.0, 20.0), fn)[1]["behind"] == 0.0  # inside 41 m: following
     assert reward(state(25.0), fn)[1]["behind"] == 0.0  # nothing in view: free driving
     assert reward(state(20.0, 80.0, 30.0), fn)[1]["behind"] == 0.0  # lead faster than the set speed: not followable
-    r_def, t_def = reward(state(25.0, 80.0, 20.0))
+    r_def = reward(state(25.0, 80.0, 20.0))[0]
     r, t = reward(state(25.0, 80.0, 20.0), fn)
     assert t["speed"] == 1.0 and t["speed"] + t["behind"] == 0.0 and r == pytest.approx(r_def - 1.0)
     assert fn.max_step_cost == pytest.approx(MarginReward().max_step_cost + 1.0)
-    # far behind never pays more than the gap closed in: approaching from 80 m to the band (30-36 m) never
-    # loses reward at 41 m, where the default reward drops the speed term's +1 (the SAC plateau, docs/rl-training.md)
+    # closing in from 80 m to the band (30-36 m) never loses reward; without the term the reward drops at 41 m,
+    # where the speed term's +1 stops (the SAC plateau, docs/rl-training.md)
     gaps = (80.0, 60.0, 42.0, 40.0, 38.0, 33.0)
     shipped_behind = MarginReward(reach=0.5, behind=1.0)
     walk = [reward(state(20.0, g, 20.0, set_speed=20.0), shipped_behind)[0] for g in gaps]
