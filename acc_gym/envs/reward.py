@@ -204,11 +204,16 @@ class MarginReward:
     behind          ``-w`` while far behind a followable vehicle (where ``speed`` and          0.0
                     ``lag`` apply): with ``w`` = the speed weight, cruising there at the
                     set speed nets 0 instead of ``+w``
+    standstill      ``-w clip((s0 - d) / s0, 0, 1)`` behind a stopped vehicle               0.0
+                    (``v_lead < 0.5 m/s``, any distance), ``d = gap - v^2 / (2 a_resp)``
+                    the gap a stop at the proper response would leave, ``s0``
+                    ``standstill_gap`` (3 m)
     ==============  ====================================================================  ==========
 
     The comfort and jerk terms count ``|a|`` up to 9 m/s^2 and the jerk up to 30 m/s^3, and
     the speed term's slope stops at ``e = 5`` (a parked ego), so a step costs at most
-    :attr:`max_step_cost` (5.58 with the defaults; ``overspeed`` adds ``5 w``, ``reach`` and ``behind`` ``w``).
+    :attr:`max_step_cost` (5.58 with the defaults; ``overspeed`` adds ``5 w``, ``reach``, ``behind`` and
+    ``standstill`` ``w``).
 
     Why these changes to :class:`CriteriaReward`:
 
@@ -231,7 +236,7 @@ class MarginReward:
       followable vehicle (an ACC drives at its set speed until it closes in), and the lag
       term grows without a plateau.
 
-    Three terms are off in the ``-v1`` ids' own reward (weight 0, so the ids' rewards are as
+    Four terms are off in the ``-v1`` ids' own reward (weight 0, so the ids' rewards are as
     released in 0.8.0); the shipped PPO training settings turn ``reach`` on (acc-gym 0.11.0,
     ``agents/rl/hyperparams/ppo.yml``: ``env_kwargs: {reward_fn: {reach: 0.5}}``; an env's
     ``reward_fn=`` takes the weights as a mapping):
@@ -261,6 +266,13 @@ class MarginReward:
       the bar's per-seed terms against four: 30 single-lane collisions, each with a lane
       change just ahead (a cut-in, or the ego merging in behind a vehicle). Not in the
       shipped settings.
+    * **standstill** charges closing on a stopped vehicle so that a stop at the proper
+      response would end within ``standstill_gap``, and standing there. Behind a stopped
+      vehicle no other term applies (it is neither followable nor free), and a PPO policy
+      trained with ``behind`` and ``overspeed`` crept up to stopped leads at 0.5 m/s until
+      Gapsafe exceeded the gap (0.7 m), a safety violation in 15 of 100 car-following
+      episodes (docs/rl-training.md). Like ``lag`` it sees a vehicle at any distance ahead
+      (a training signal, not a sensor).
     """
 
     band: float = 1.0
@@ -276,16 +288,18 @@ class MarginReward:
     overspeed_scale: float = 0.1  # [-] the overspeed term charges w per this share of the set speed over it
     reach: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); the shipped PPO training sets 0.5
     behind: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.13.0, not shipped
+    standstill: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried after 0.13.0
+    standstill_gap: float = 3.0  # [m] the standstill term charges a stop (at the proper response) closer than this
     peak: float = 0.5  # [-] u_t where the efficiency tent is highest (0: the safety boundary, 1: the band's far edge)
     slope: float = 0.25  # [-] the speed term's slope beyond 20 % off the set speed, per 20 %
     response_decel: float = 2.0  # [m/s^2] braking that counts as a proper response (ScoringConfig.response_decel)
     jerk_scale: float = 10.0  # [m/s^3]
 
     TERMS = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "overspeed",
-             "reach", "behind")
+             "reach", "behind", "standstill")
 
     def __post_init__(self) -> None:
-        _check_weights(self, ("response_decel", "jerk_scale", "overspeed_scale"))
+        _check_weights(self, ("response_decel", "jerk_scale", "overspeed_scale", "standstill_gap"))
         if not 0.0 <= self.peak <= 1.0:
             raise ValueError(f"MarginReward.peak must be in [0, 1] (a position in the band), got {self.peak!r}")
         from acc_gym.envs._kernel import MARGIN_W
@@ -297,13 +311,14 @@ class MarginReward:
     A_COUNTED = 9.0  # [m/s^2] the comfort term counts |a| up to this (about the tyre limit)
     JERK_COUNTED = 30.0  # [m/s^3] the jerk term counts |jerk| up to this
     E_COUNTED = 5.0  # the speed term's slope stops here (a parked ego: e = 5)
+    STOPPED = 0.5  # [m/s] a vehicle ahead slower than this is stopped (the standstill term)
 
     @property
     def max_step_cost(self) -> float:
         """The most the terms other than the collision can charge in one step (a_comfort 3 m/s^2)."""
         return (self.speed * self.slope * (self.E_COUNTED - 1.0) + self.response + self.comfort * (self.A_COUNTED / 3.0) ** 2
                 + self.jerk * (self.JERK_COUNTED / self.jerk_scale) ** 2 + self.safety + self.lag
-                + self.overspeed * self.E_COUNTED + self.reach + self.behind)
+                + self.overspeed * self.E_COUNTED + self.reach + self.behind + self.standstill)
 
     def from_criteria(self, fl: np.ndarray, bo: np.ndarray, set_speed: np.ndarray, tau1: np.ndarray,
                       steps: np.ndarray, k: np.ndarray, a_comfort: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -349,6 +364,10 @@ class MarginReward:
         with np.errstate(invalid="ignore", divide="ignore"):
             reach = np.where(following & (gs > 0), np.minimum(np.maximum(q / gs - REACH_BAND, 0.0) / REACH_BAND, 1.0),
                              0.0)
+        with np.errstate(invalid="ignore"):
+            stopped = np.isfinite(gap) & (np.asarray(s.v_lead, dtype=float) < self.STOPPED)  # a stopped vehicle ahead
+            stop_gap = gap - v * v / (2.0 * self.response_decel)  # [m] left if the ego braked at the proper response
+            stand = np.where(stopped, np.clip((self.standstill_gap - stop_gap) / self.standstill_gap, 0.0, 1.0), 0.0)
         steps_left = 0.0 if s.steps_left is None else np.maximum(np.asarray(s.steps_left, dtype=float), 0.0)
         terms = {
             "band": self.band * (following & np.asarray(s.in_band, dtype=bool)),
@@ -366,6 +385,7 @@ class MarginReward:
                                                       self.E_COUNTED),
             "reach": -self.reach * reach,
             "behind": -self.behind * behind.astype(float),
+            "standstill": -self.standstill * stand,
         }
         terms = {k: np.asarray(val, dtype=float) for k, val in terms.items()}
         return sum(terms.values()), terms

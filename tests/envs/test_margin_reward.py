@@ -129,7 +129,34 @@ def test_the_behind_term_equals_hand_computations():
     assert plain[2] > plain[3]  # the default drops at the lag's start
 
 
-@pytest.mark.parametrize("fn", [MarginReward(), SHIPPED, MarginReward(overspeed=1.0, reach=0.5, behind=1.0)],
+def test_the_standstill_term_equals_hand_computations():
+    """Off by default; with a weight, closing on a stopped vehicle (v_lead < 0.5 m/s) so that a
+    stop at the proper response (2 m/s^2) would leave less than 3 m costs it in proportion,
+    and standing closer than 3 m does too; a moving lead or nothing ahead costs nothing."""
+    fn = MarginReward(standstill=1.0)
+    assert reward(state(5.0, 8.0, 0.0))[1]["standstill"] == 0.0  # default: off
+    # 5 m/s, 8 m behind a stopped car: a stop at 2 m/s^2 takes 25 / 4 = 6.25 m, leaving 1.75 m: (3 - 1.75) / 3
+    assert reward(state(5.0, 8.0, 0.0), fn)[1]["standstill"] == pytest.approx(-1.25 / 3)
+    assert reward(state(0.0, 2.0, 0.0), fn)[1]["standstill"] == pytest.approx(-1.0 / 3)  # standing 2 m behind
+    assert reward(state(0.0, 5.0, 0.0), fn)[1]["standstill"] == 0.0  # standing 5 m behind
+    assert reward(state(10.0, 40.0, 0.0), fn)[1]["standstill"] == 0.0  # 40 - 25 = 15 m left
+    assert reward(state(20.0, 10.0, 0.0), fn)[1]["standstill"] == -1.0  # no stop at 2 m/s^2 in time: all of it
+    assert reward(state(5.0, 8.0, 1.0), fn)[1]["standstill"] == 0.0  # the lead moves (1 m/s)
+    assert reward(state(5.0), fn)[1]["standstill"] == 0.0  # nothing ahead
+    assert MarginReward(standstill=1.0, standstill_gap=2.0).__call__(state(0.0, 1.0, 0.0))[1]["standstill"][0] == -0.5
+    assert fn.max_step_cost == pytest.approx(MarginReward().max_step_cost + 1.0)
+    # creeping up to a stopped car (0.5 m/s at 1 m, the step before Gapsafe exceeds the gap, as a PPO policy learnt
+    # to) pays the shipped training reward as much as standing 4 m back; with the term 2.0625 / 3 less
+    creep, back = state(0.5, 1.0, 0.0), state(0.0, 4.0, 0.0)
+    assert reward(creep, SHIPPED)[0] == pytest.approx(reward(back, SHIPPED)[0], abs=1e-12)
+    with_term = MarginReward(reach=0.5, standstill=1.0)
+    assert reward(creep, with_term)[0] == pytest.approx(reward(back, with_term)[0] - 2.0625 / 3)
+    with pytest.raises(ValueError, match="standstill_gap"):
+        MarginReward(standstill_gap=0.0)
+
+
+@pytest.mark.parametrize("fn", [MarginReward(), SHIPPED, MarginReward(overspeed=1.0, reach=0.5, behind=1.0,
+                                                                      standstill=1.0)],
                          ids=["default", "shipped", "every term"])
 def test_no_step_costs_more_than_max_step_cost(fn):
     rng = np.random.default_rng(0)

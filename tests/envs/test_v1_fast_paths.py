@@ -36,12 +36,14 @@ def same_bits(a, b) -> bool:
 
 @pytest.mark.parametrize("reward", [MarginReward(), MarginReward(band=2.0, lag=1.5, peak=0.2, slope=0.5, jerk_scale=4.0,
                                                                  response_decel=3.0, collision=50.0, overspeed=1.5,
-                                                                 overspeed_scale=0.05, reach=0.7, behind=0.9)],
+                                                                 overspeed_scale=0.05, reach=0.7, behind=0.9,
+                                                                 standstill=0.8, standstill_gap=4.0)],
                          ids=["default", "weights"])
 def test_margin_reward_from_criteria_rows_equals_the_numpy_reference(reward):
     rng = np.random.default_rng(1)
     n = 2000
     fl, bo = random_rows(rng, n)
+    fl[K.F_VLEAD, :300] = 0.0  # stopped vehicles ahead (the standstill term)
     set_speed, tau1 = rng.uniform(5.0, 40.0, n), rng.uniform(0.5, 3.0, n)
     steps, k = rng.integers(1, 400, n), rng.integers(0, 420, n)  # some past their budget (steps left < 0)
     ind = kernel_rows.indicators(fl, bo, set_speed, tau1, steps_left=steps - k)
@@ -54,6 +56,9 @@ def test_margin_reward_from_criteria_rows_equals_the_numpy_reference(reward):
     # the rows cover every branch: behind with an infinite gap, the response term, collisions
     assert np.isinf(fl[K.F_GAP][bo[K.B_FOLLOWABLE]]).any() and (terms_slow["response"] < 0).any()
     assert (terms_slow["collision"] < -reward.collision).any()
+    if reward.standstill:  # behind stopped vehicles: charged in full, in part, and not at all
+        st = terms_slow["standstill"]
+        assert (st == -reward.standstill).any() and ((st < 0) & (st > -reward.standstill)).any() and (st == 0).any()
 
 
 def test_features32_equals_the_float64_chain():
