@@ -290,7 +290,7 @@ class MarginReward:
     overspeed_scale: float = 0.1  # [-] the overspeed term charges w per this share of the set speed over it
     reach: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); the shipped PPO training sets 0.5
     behind: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.13.0, not shipped
-    standstill: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried after 0.13.0
+    standstill: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.14.0, not shipped
     standstill_gap: float = 3.0  # [m] the standstill term charges a stop (at the proper response) closer than this
     peak: float = 0.5  # [-] u_t where the efficiency tent is highest (0: the safety boundary, 1: the band's far edge)
     slope: float = 0.25  # [-] the speed term's slope beyond 20 % off the set speed, per 20 %

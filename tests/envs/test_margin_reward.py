@@ -143,7 +143,7 @@ def test_the_standstill_term_equals_hand_computations():
     assert reward(state(20.0, 10.0, 0.0), fn)[1]["standstill"] == -1.0  # no stop at 2 m/s^2 in time: all of it
     assert reward(state(5.0, 8.0, 1.0), fn)[1]["standstill"] == 0.0  # the lead moves (1 m/s)
     assert reward(state(5.0), fn)[1]["standstill"] == 0.0  # nothing ahead
-    assert MarginReward(standstill=1.0, standstill_gap=2.0).__call__(state(0.0, 1.0, 0.0))[1]["standstill"][0] == -0.5
+    assert reward(state(0.0, 1.0, 0.0), MarginReward(standstill=1.0, standstill_gap=2.0))[1]["standstill"] == -0.5
     assert fn.max_step_cost == pytest.approx(MarginReward().max_step_cost + 1.0)
     # creeping up to a stopped car (0.5 m/s at 1 m, the step before Gapsafe exceeds the gap, as a PPO policy learnt
     # to) pays the shipped training reward as much as standing 4 m back; with the term 2.0625 / 3 less
