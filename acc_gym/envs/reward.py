@@ -272,7 +272,8 @@ class MarginReward:
       trained with ``behind`` and ``overspeed`` crept up to stopped leads at 0.5 m/s until
       Gapsafe exceeded the gap (0.7 m), a safety violation in 15 of 100 car-following
       episodes (docs/rl-training.md). Like ``lag`` it sees a vehicle at any distance ahead
-      (a training signal, not a sensor). With it (PPO, five seeds, acc-gym 0.14.0) no seed
+      (a training signal, not a sensor); a vehicle ahead at 0.5-1 m/s is neither stopped nor
+      followable, and no term covers it. With it (PPO, five seeds, acc-gym 0.14.0) no seed
       failed behind a stopped lead by creeping, but cut-in collisions came back (7 in 2,000
       validation episodes against the shipped settings' 2). Not in the shipped settings.
     """
@@ -313,7 +314,9 @@ class MarginReward:
     A_COUNTED = 9.0  # [m/s^2] the comfort term counts |a| up to this (about the tyre limit)
     JERK_COUNTED = 30.0  # [m/s^3] the jerk term counts |jerk| up to this
     E_COUNTED = 5.0  # the speed term's slope stops here (a parked ego: e = 5)
-    STOPPED = 0.5  # [m/s] a vehicle ahead slower than this is stopped (the standstill term)
+    # [m/s] a vehicle ahead slower than this is stopped (the standstill term; ScoringConfig.stop_speed's value). A
+    # vehicle is followable only above ScoringConfig.moving_speed (1 m/s): one at 0.5-1 m/s gets neither term
+    STOPPED = 0.5
 
     @property
     def max_step_cost(self) -> float:
@@ -366,7 +369,6 @@ class MarginReward:
         with np.errstate(invalid="ignore", divide="ignore"):
             reach = np.where(following & (gs > 0), np.minimum(np.maximum(q / gs - REACH_BAND, 0.0) / REACH_BAND, 1.0),
                              0.0)
-        with np.errstate(invalid="ignore"):
             stopped = np.isfinite(gap) & (np.asarray(s.v_lead, dtype=float) < self.STOPPED)  # a stopped vehicle ahead
             stop_gap = gap - v * v / (2.0 * self.response_decel)  # [m] left if the ego braked at the proper response
             stand = np.where(stopped, np.clip((self.standstill_gap - stop_gap) / self.standstill_gap, 0.0, 1.0), 0.0)
