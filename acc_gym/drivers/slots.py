@@ -85,6 +85,7 @@ class SlotDrivers:
         else:
             self._baseline.assign(row, MODELS[spec.model], spec.params_object())
             self.kind[row] = 3
+            self._kinds_seen = None  # the path also depends on the baseline rows' delays
 
     def prepare(self, spec) -> bool:
         """Do ahead of :meth:`assign` what needs only the driver ``spec`` itself: an MPC
@@ -107,7 +108,9 @@ class SlotDrivers:
     def _path(self) -> str:
         """How a step of the current kinds of rows runs, decided once per change of kinds:
         ``"mpc"`` (every row an MPC driver), ``"mpc+idle"`` (MPC drivers, absent vehicles
-        and profiles: the MPC array path with the other rows cruising), ``"mixed"``."""
+        and profiles: the MPC array path with the other rows cruising), ``"baselines"``
+        (baseline models without a reaction delay, absent vehicles and profiles: each model's
+        compiled law on the rows as they are), ``"mixed"``."""
         kinds = self.kind.tobytes()
         if kinds != getattr(self, "_kinds_seen", None):
             self._kinds_seen = kinds
@@ -122,6 +125,8 @@ class SlotDrivers:
                 self._is_mpc = is_mpc
                 self._idle = np.flatnonzero(~is_mpc)
                 self._cruise = _cruise_columns(self._mpc.params.v_desired[self._idle])
+            elif not is_mpc.any() and not self._baseline.delayed():
+                self._path_cached = "baselines"
             else:
                 self._path_cached = "mixed"
         return self._path_cached
@@ -151,6 +156,8 @@ class SlotDrivers:
         path = self._path()
         if path == "mpc+idle":
             return self._act_rows_mpc_and_idle(rows)
+        if path == "baselines":
+            return self._act_rows_baselines(rows)
         if path == "mixed":
             return self.act(Observation(*rows))
         mpc = self._mpc
@@ -180,6 +187,22 @@ class SlotDrivers:
             self._play_profiles(rows[0], out)
         self._clock += 1
         self.info = {"mode": mode}
+        return out
+
+    def _act_rows_baselines(self, rows: np.ndarray) -> np.ndarray:
+        """:meth:`act` on observation rows when the rows hold baseline models without a
+        reaction delay, absent vehicles and profiles only (``drivers="idm"`` and the like):
+        each model's compiled law on its group's rows, reading the rows in place (no delay
+        ring to fill, no MPC batch), the profiles played, the rest 0 -- the same numbers as
+        :meth:`act` (tests/drivers/test_slots.py)."""
+        out = np.zeros(self.n)
+        if self._has_profiles:
+            self._play_profiles(rows[0], out)
+        obs = Observation(*rows)
+        for model, grp, _ in self._baseline._groups():
+            model.act_into(obs, obs, grp, out)
+        self._clock += 1
+        self.info = {"mode": np.full(self.n, -1, dtype=np.int64)}
         return out
 
     def _play_profiles(self, v: np.ndarray, out: np.ndarray) -> None:
@@ -281,6 +304,12 @@ class BaselineRows:
             self._group[row] = -1
             self._delay[row] = 0
             self._active = None
+
+    def delayed(self) -> bool:
+        """Does some row's driver have a reaction delay (then :meth:`act` keeps a ring of past
+        observations)?"""
+        self._groups()
+        return self._delayed
 
     def _groups(self) -> list:
         if self._active is None:

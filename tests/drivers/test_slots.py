@@ -159,6 +159,48 @@ def test_batched_baseline_rows_equal_each_row_run_alone_through_new_episodes():
     assert delays[2] == 5
 
 
+def test_rows_path_of_undelayed_baselines_absent_and_profile_rows_equals_each_driver_alone():
+    """The array path taken when a batch holds baseline models without a reaction delay,
+    absent vehicles and profiles (``drivers="idm"``; issue 35): every row equals its driver
+    run alone, absent rows ask for 0, every mode is -1; when a row is given a delayed model
+    mid-run the batch leaves that path (a delay needs the ring of past observations) and
+    the rows still equal their drivers alone, and it takes the path again once no row is
+    delayed."""
+    from acc_gym.drivers.baselines import MODELS
+
+    profile = SpeedProfile.from_segments(10.0, [(1.0, 4.0), (-2.0, 3.0), (0.0, 5.0)])
+    slot = SlotDrivers(5, 0.2)
+    alone = {}
+
+    def give(row, model, params):
+        spec = DriverSpec(model, dict(params))
+        slot.assign(row, spec)
+        alone[row] = MODELS[model](spec.params_object(), n=1, dt=0.2)
+
+    give(0, "idm", {"v_desired": 22.0})
+    give(1, "fuzzy", {})
+    slot.assign(2, None)
+    slot.assign(3, DriverSpec.from_profile(profile))
+    alone[3] = ProfileDriver(profile, n=1, dt=0.2)
+    give(4, "acc", {"k3": 1.0, "time_gap": 0.6, "predecessors": 2})
+    paths = []
+    for k in range(30):
+        if k == 10:
+            give(0, "idm", {"v_desired": 25.0, "tau": 0.4})  # same kind, now delayed
+        if k == 20:
+            give(0, "idm", {"time_gap": 1.1})  # no delay again
+        o = obs_for(5, k)
+        rows = np.array([o.v, o.a, o.gap, o.v_lead, o.a_lead, o.gap + 25.0, o.v_lead + 0.5, np.zeros(5)])
+        out = slot.act_rows(rows)
+        paths.append(slot._path())
+        seen = Observation(*rows)
+        for row, model in alone.items():
+            assert out[row] == model.act(seen.take([row]))[0], (k, row)
+        assert out[2] == 0.0 and np.all(slot.info["mode"] == -1)
+    assert paths[:10] == ["baselines"] * 10 and paths[10:20] == ["mixed"] * 10
+    assert paths[20:] == ["baselines"] * 10
+
+
 def test_a_large_batch_uses_the_parallel_kernel_and_gives_the_same_numbers():
     """Vector envs of >= 128 scenes step their drivers with the parallel kernel: each row must still
     equal the driver stepped alone (what makes a large vector env equal single envs)."""
