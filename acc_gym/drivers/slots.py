@@ -198,11 +198,15 @@ class SlotDrivers:
         out = np.zeros(self.n)
         if self._has_profiles:
             self._play_profiles(rows[0], out)
-        obs = Observation(*rows)
+        obs = _RowFields(rows)
         for model, grp, _ in self._baseline._groups():
             model.act_into(obs, obs, grp, out)
         self._clock += 1
-        self.info = {"mode": np.full(self.n, -1, dtype=np.int64)}
+        modes = self.__dict__.get("_no_modes")
+        if modes is None or modes.shape[0] != self.n:
+            modes = self._no_modes = np.full(self.n, -1, dtype=np.int64)
+            modes.setflags(write=False)  # one array for every step: no mode to report
+        self.info = {"mode": modes}
         return out
 
     def _play_profiles(self, v: np.ndarray, out: np.ndarray) -> None:
@@ -347,6 +351,26 @@ class BaselineRows:
 _CRUISE = {"a": 0.0, "gap": np.inf, "v_lead": 0.0, "a_lead": 0.0, "gap2": np.inf, "v_lead2": 0.0, "a_lead2": 0.0,
            "stop_gap": np.inf}
 _OBS_NAMES = tuple(f.name for f in fields(Observation))  # Observation's field order (observation rows)
+
+
+class _RowFields:
+    """:class:`~acc_gym.drivers.base.Observation`'s fields read from observation rows (``(>= 5,
+    n)``, Observation's field order) when a law asks for them: the same arrays as
+    ``Observation(*rows)``'s, a view made per field read instead of one per row up front
+    (a field the rows lack, such as ``stop_gap`` of the world's eight rows, is None, as there)."""
+
+    __slots__ = ("rows",)
+
+    def __init__(self, rows: np.ndarray):
+        self.rows = rows
+
+
+def _row_field(i: int) -> property:
+    return property(lambda self: self.rows[i] if i < self.rows.shape[0] else None)
+
+
+for _i, _name in enumerate(_OBS_NAMES):
+    setattr(_RowFields, _name, _row_field(_i))
 
 
 def _cruise_columns(v_desired: np.ndarray) -> np.ndarray:

@@ -246,7 +246,7 @@ class EpisodeBatch:
         w.adopt(F, I, obs_all)
         q, gs, collision, violation = fl[K.F_Q], fl[K.F_GS], bo[K.B_COLLISION], bo[K.B_VIOLATION]
         if default or margin:
-            terms = dict(zip(names, terms_arr))
+            terms = None  # made below only for the arrays' info (the single env reads terms_arr)
         else:
             ind = StepIndicators.from_rows(fl, bo, self.set_speed, self.tau1, cfg.a_x_comfort,
                                            steps_left=self.steps - w.k)
@@ -282,6 +282,8 @@ class EpisodeBatch:
         self.last_term_names = names
         ended = ended[:n_ended]
         if arrays:
+            if terms is None:
+                terms = dict(zip(names, terms_arr))
             info = {"t": fl[K.F_T], "q": q, "g": q, "gap_safe": gs, "a_applied": fl[K.F_A], "violation": violation,
                     "modes": self.modes(), "fallbacks": self.fallbacks(), "rewards": terms}
         else:
