@@ -60,7 +60,10 @@ cavsandbox the ratio is ``null`` and ``column_ratio_cavsandbox_reason`` says why
 ``git worktree add /tmp/prev v0.5.0``) in the same run: each repeat runs this script once
 for this checkout and once for ``DIR`` (``PYTHONPATH=DIR``), alternating, in subprocesses,
 and reports both medians and their ratio per key (``against``: ``{key: {"this": ..,
-"other": .., "ratio": ..}}``).
+"other": .., "ratio": .., "paired_ratio": ..}}``). ``paired_ratio`` is the median over the
+repeats of each repeat's own ratio (this run / the other checkout's run right after it): the
+machine's speed drifts by 30-50 % over minutes, which moves both runs of a pair together but
+not the two medians, so prefer it when the runs spread widely.
 
     python benchmarks/bench_env.py            # table
     python benchmarks/bench_env.py --json     # one JSON object
@@ -248,6 +251,13 @@ def _median(out: dict, key: str, runs: list) -> None:
     out[key + "_runs"] = [round(x) for x in runs]
 
 
+def paired_ratio(this_runs: list, other_runs: list) -> float:
+    """The median over repeats of ``this_runs[i] / other_runs[i]`` (runs timed back to back)."""
+    if len(this_runs) != len(other_runs) or not this_runs:
+        raise ValueError(f"paired runs must be non-empty and of one length, got {len(this_runs)} and {len(other_runs)}")
+    return float(np.median([a / b for a, b in zip(this_runs, other_runs)]))
+
+
 def against(args) -> dict:
     """This checkout and ``args.against``, alternating, one subprocess each per repeat."""
     cmd = [sys.executable, os.path.abspath(__file__), "--repeats", "1", "--json", "--steps", str(args.steps),
@@ -267,6 +277,7 @@ def against(args) -> dict:
         this = float(np.median([r[k] for r in runs["this"]]))
         other = float(np.median([r[k] for r in runs["other"]]))
         table[k] = {"this": this, "other": other, "ratio": this / other,
+                    "paired_ratio": paired_ratio([r[k] for r in runs["this"]], [r[k] for r in runs["other"]]),
                     "this_runs": [round(r[k]) for r in runs["this"]], "other_runs": [round(r[k]) for r in runs["other"]]}
     return {"against": table, "against_dir": os.path.abspath(args.against), "repeats": args.repeats}
 
@@ -296,9 +307,11 @@ def main(argv=None) -> dict:
         if args.json:
             print(json.dumps(out))
         else:
-            print(f"this checkout against {out['against_dir']} ({args.repeats} alternating runs each, medians):")
+            print(f"this checkout against {out['against_dir']} ({args.repeats} alternating runs each, medians; "
+                  f"paired: the median of each repeat's ratio):")
             for k, row in out["against"].items():
-                print(f"  {k:38s} {row['this']:>12,.0f} vs {row['other']:>12,.0f}  x{row['ratio']:.2f}")
+                print(f"  {k:38s} {row['this']:>12,.0f} vs {row['other']:>12,.0f}  x{row['ratio']:.2f}"
+                      f"  paired x{row['paired_ratio']:.2f}")
         return out
     if args.peers:
         sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))

@@ -97,6 +97,22 @@ def test_bench_env_against_another_checkout():
     for row in out["against"].values():
         assert row["this"] > 0 and row["other"] > 0 and row["ratio"] == pytest.approx(row["this"] / row["other"])
         assert len(row["this_runs"]) == len(row["other_runs"]) == 1
+        assert row["paired_ratio"] == pytest.approx(row["this"] / row["other"])  # one pair: the same ratio
+
+
+def test_paired_ratio_is_the_median_of_each_repeats_ratio():
+    """Runs (10, 20, 40) against (5, 10, 40): pairwise ratios 2, 2, 1, median 2 (the medians'
+    ratio, 20 / 10, agrees); (12, 10, 30) against (10, 20, 20): ratios 1.2, 0.5, 1.5, median
+    1.2, where the medians' ratio is 12 / 20 = 0.6 -- a drift that slows both runs of a
+    repeat moves the medians apart, not the pairs' ratios."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import bench_env
+
+    assert bench_env.paired_ratio([10, 20, 40], [5, 10, 40]) == 2.0
+    assert bench_env.paired_ratio([12, 10, 30], [10, 20, 20]) == pytest.approx(1.2)
+    assert bench_env.paired_ratio([3, 1], [1, 1]) == 2.0  # an even count: the mean of the middle two
+    with pytest.raises(ValueError, match="one length"):
+        bench_env.paired_ratio([1, 2], [1])
 
 
 def test_bench_leaderboard_json_keys():
