@@ -55,6 +55,8 @@ class SlotDrivers:
         self._baseline = BaselineRows(self.n, self.dt)
         self.info: dict[str, np.ndarray] = {}
         self.fallbacks = np.zeros(self.n, dtype=np.int64)  # solver fallbacks in the current episode
+        self._no_modes = np.full(self.n, -1, dtype=np.int64)  # info["mode"] of a step without MPC drivers
+        self._no_modes.setflags(write=False)  # one array for every such step: read-only
 
     # ------------------------------------------------------------------ episodes
     def assign(self, row: int, spec) -> None:
@@ -202,11 +204,7 @@ class SlotDrivers:
         for model, grp, _ in self._baseline._groups():
             model.act_into(obs, obs, grp, out)
         self._clock += 1
-        modes = self.__dict__.get("_no_modes")
-        if modes is None or modes.shape[0] != self.n:
-            modes = self._no_modes = np.full(self.n, -1, dtype=np.int64)
-            modes.setflags(write=False)  # one array for every step: no mode to report
-        self.info = {"mode": modes}
+        self.info = {"mode": self._no_modes}
         return out
 
     def _play_profiles(self, v: np.ndarray, out: np.ndarray) -> None:

@@ -41,6 +41,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from acc_gym.evaluation.scoring import ScoringConfig
+
 
 @dataclass
 class StepIndicators:
@@ -314,9 +316,9 @@ class MarginReward:
     A_COUNTED = 9.0  # [m/s^2] the comfort term counts |a| up to this (about the tyre limit)
     JERK_COUNTED = 30.0  # [m/s^3] the jerk term counts |jerk| up to this
     E_COUNTED = 5.0  # the speed term's slope stops here (a parked ego: e = 5)
-    # [m/s] a vehicle ahead slower than this is stopped (the standstill term; ScoringConfig.stop_speed's value). A
+    # [m/s] a vehicle ahead slower than this is stopped (the standstill term): the score's own standing speed. A
     # vehicle is followable only above ScoringConfig.moving_speed (1 m/s): one at 0.5-1 m/s gets neither term
-    STOPPED = 0.5
+    STOPPED = ScoringConfig.stop_speed
 
     @property
     def max_step_cost(self) -> float:
@@ -350,7 +352,8 @@ class MarginReward:
         following = np.asarray(s.following, dtype=bool)
         followable = np.asarray(s.followable, dtype=bool)
         gap = np.asarray(s.gap, dtype=float)
-        far = 1.2 * np.asarray(s.tau1, dtype=float) * np.asarray(s.v_lead, dtype=float) + 5.0  # [m]
+        v_lead = np.asarray(s.v_lead, dtype=float)
+        far = 1.2 * np.asarray(s.tau1, dtype=float) * v_lead + 5.0  # [m]
         with np.errstate(invalid="ignore"):
             behind = followable & (gap > far)
             x = np.where(behind, (gap - far) / far, 0.0)
@@ -369,7 +372,7 @@ class MarginReward:
         with np.errstate(invalid="ignore", divide="ignore"):
             reach = np.where(following & (gs > 0), np.minimum(np.maximum(q / gs - REACH_BAND, 0.0) / REACH_BAND, 1.0),
                              0.0)
-            stopped = np.isfinite(gap) & (np.asarray(s.v_lead, dtype=float) < self.STOPPED)  # a stopped vehicle ahead
+            stopped = np.isfinite(gap) & (v_lead < self.STOPPED)  # a stopped vehicle ahead
             stop_gap = gap - v * v / (2.0 * self.response_decel)  # [m] left if the ego braked at the proper response
             stand = np.where(stopped, np.clip((self.standstill_gap - stop_gap) / self.standstill_gap, 0.0, 1.0), 0.0)
         steps_left = 0.0 if s.steps_left is None else np.maximum(np.asarray(s.steps_left, dtype=float), 0.0)
