@@ -883,6 +883,10 @@ def _make_prepare(parallel):
         stats = I[:, I_STATS:I_STATS + N_STATS]
         act_codes = I[:, I_CODES:]
         for i in rng(nd):
+            if I[i, I_IDLE] != 0:  # a row without an MPC driver (SlotDrivers' absent and profile rows)
+                W[i, W_U0] = 0.0
+                W[i, W_PATH] = -1
+                continue
             t = numba.get_thread_id() if parallel else 0  # scratch: one set per thread
             _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, GL, hinv_f, hinv_c,
                  mode, lower, upper, plan, aseq, W, act_codes, act_count, stats,
@@ -899,7 +903,9 @@ def _make_prepare(parallel):
 
     Returns ``-code`` for invalid inputs (nothing written), else the number of drivers
     whose QP the warm active-set solver could not settle (their indices in ``I[:, I_HARD]``):
-    the caller solves those with the backend. Arrays (``n`` drivers, ``N`` steps, ``M``
+    the caller solves those with the backend. Rows flagged in ``I[:, I_IDLE]`` are skipped
+    (output 0, path -1, nothing else written): rows do not interact, so the others' numbers
+    are the same with or without them. Arrays (``n`` drivers, ``N`` steps, ``M``
     bounds): ``G`` (n, 2, N, 3) follow/cruise gains; ``GL`` lead-acceleration gain sums;
     ``H`` (n, 2, 2, N, N) follow/cruise H^-1 column sums; ``B`` (n, 2, M) lower/upper
     bounds; ``PA`` (n, 2, N) plan and predicted lead accelerations; ``W`` (n, N_WORK);
@@ -914,7 +920,8 @@ PARALLEL_MIN_BATCH = 128  # below this many drivers the thread pool costs more t
 # int state columns
 I_MODE, I_COUNT, I_HARD = 0, 1, 2
 I_STATS = 3
-I_CODES = I_STATS + N_STATS
+I_IDLE = I_STATS + N_STATS  # 1: the row has no driver this step (skipped: output 0, path -1, no statistics)
+I_CODES = I_IDLE + 1
 
 
 def scratch(n_steps: int, parallel: bool):

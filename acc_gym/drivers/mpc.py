@@ -489,6 +489,19 @@ class MPCDriver:
         self._last_used = {key: -2 for key in self._backends}
         self._step = 0
 
+    def set_idle(self, idle: np.ndarray) -> None:
+        """Mark the rows whose output nobody reads (``idle``, booleans ``(n,)``): :meth:`act`
+        skips them -- their action is 0 and their mode, plan and statistics are left as they
+        were -- until :meth:`set_params` restarts them (which clears the mark) or this is
+        called again. The other rows' numbers are the same either way (rows do not
+        interact). :class:`~acc_gym.drivers.slots.SlotDrivers` marks its rows without an MPC
+        driver (absent vehicles, profiles): before, the kernel planned a cruise for each of
+        them and the result was thrown away (issue 35)."""
+        idle = np.asarray(idle)
+        if idle.shape != (self.n,) or idle.dtype != bool:
+            raise ValueError(f"idle must be booleans of shape ({self.n},), got {idle.dtype} {idle.shape}")
+        self._I[:, K.I_IDLE] = idle
+
     def set_params(self, index, params: MPCDriverParams) -> None:
         """Give drivers ``index`` (an int or a sequence) new ``params`` and restart them.
 

@@ -110,13 +110,15 @@ class SlotDrivers:
     def _path(self) -> str:
         """How a step of the current kinds of rows runs, decided once per change of kinds:
         ``"mpc"`` (every row an MPC driver), ``"mpc+idle"`` (MPC drivers, absent vehicles
-        and profiles: the MPC array path with the other rows cruising), ``"baselines"``
+        and profiles: the MPC array path with the other rows skipped by its kernel), ``"baselines"``
         (baseline models without a reaction delay, absent vehicles and profiles: each model's
         compiled law on the rows as they are), ``"mixed"``."""
         kinds = self.kind.tobytes()
         if kinds != getattr(self, "_kinds_seen", None):
             self._kinds_seen = kinds
             is_mpc = self.kind == 1
+            if self._mpc is not None:  # the kernel skips the rows without an MPC driver (their output is unused)
+                self._mpc.set_idle(~is_mpc)
             self._profile_rows = np.flatnonzero(self.kind == 2)
             self._has_profiles = self._profile_rows.size > 0
             self._has_baselines = bool(np.any(self.kind == 3))
@@ -142,7 +144,9 @@ class SlotDrivers:
         vehicle, a scripted profile, a baseline model) see a steady cruise at their row's
         desired speed with nothing ahead -- a state whose plan is the unconstrained law,
         solved in the kernel without a QP -- instead of the parked vehicle an absent slot
-        holds (a standing start with an open road: a backend QP solve every step). Their
+        holds (a standing start with an open road: a backend QP solve every step). The
+        kernel skips them (:meth:`MPCDriver.set_idle <acc_gym.drivers.mpc.MPCDriver.set_idle>`,
+        marked by :meth:`_path`); the cruise only keeps its input check quiet. Their
         output is discarded, and a row that gets an MPC driver is restarted by
         :meth:`MPCDriver.set_params <acc_gym.drivers.mpc.MPCDriver.set_params>`, so no
         present vehicle's numbers change (rows of the batch do not interact)."""

@@ -257,3 +257,38 @@ def test_slot_views_of_one_holder_equal_separate_slots():
         views[0].act(None)
     with pytest.raises(ValueError, match="out of range"):
         views[0].assign(n, None)
+
+
+def test_idle_rows_are_skipped_and_the_others_keep_their_numbers():
+    """MPCDriver.set_idle (issue 35): marked rows ask for 0 and gain no statistics, the other
+    rows' actions, modes and statistics equal an unmarked batch's bit for bit, set_params
+    clears the mark; SlotDrivers marks its absent and profile rows (their planned cruise was
+    computed and thrown away before)."""
+    rng = np.random.default_rng(11)
+    params = sample_drivers(rng, 4, 25.0)
+    marked, plain = MPCDriver(params), MPCDriver(params)
+    idle = np.array([False, True, False, True])
+    marked.set_idle(idle)
+    for k in range(25):
+        o = obs_for(4, k)
+        a, b = marked.act(o), plain.act(o)
+        assert np.array_equal(a[~idle], b[~idle]) and np.all(a[idle] == 0.0), k
+        assert np.array_equal(marked.mode[~idle], plain.mode[~idle])
+    assert np.array_equal(marked.stats["steps"], [25, 0, 25, 0])
+    assert np.array_equal(plain.stats["steps"], [25, 25, 25, 25])
+    marked.set_params(1, params.take([1]))  # restarted: planned again
+    marked.act(obs_for(4, 25))
+    assert marked.stats["steps"][1] == 1 and marked.stats["steps"][3] == 0
+    with pytest.raises(ValueError, match="idle must be booleans of shape"):
+        marked.set_idle(np.zeros(3, bool))
+    with pytest.raises(ValueError, match="idle must be booleans"):
+        marked.set_idle(np.zeros(4))
+
+    slot = SlotDrivers(3, 0.2)
+    slot.assign(0, DriverSpec.mpc(params.take([0])))
+    slot.assign(1, None)
+    slot.assign(2, DriverSpec.from_profile(SpeedProfile.from_segments(10.0, [(1.0, 4.0)])))
+    for k in range(5):
+        o = obs_for(3, k)
+        slot.act_rows(np.array([o.v, o.a, o.gap, o.v_lead, o.a_lead, np.full(3, np.inf), np.zeros(3), np.zeros(3)]))
+    assert np.array_equal(slot._mpc.stats["steps"], [5, 0, 0])  # without the marks: [5, 5, 5]
