@@ -211,11 +211,14 @@ def test_a_large_batch_uses_the_parallel_kernel_and_gives_the_same_numbers():
     alone = [MPCDriver(p.take([i])) for i in rows]
     assert big._parallel and not alone[0]._parallel
     assert not MPCDriver(p)._parallel  # the default: no threads (see MPCSettings.parallel)
+    idle = np.arange(130) % 3 == 1  # rows skipped by the threads (MPCDriver.set_idle); none of `rows`
+    big.set_idle(idle)
     for _ in range(40):
         v = rng.uniform(5, 30, 130)
         o = Observation.build(v=v, a=rng.uniform(-1, 1, 130), gap=rng.uniform(3, 80, 130),
                               v_lead=np.maximum(v + rng.normal(0, 3, 130), 0.0), a_lead=rng.uniform(-3, 1, 130))
         a = big.act(o)
+        assert np.all(a[idle] == 0.0)
         for model, i in zip(alone, rows):
             assert a[i] == model.act(o.take([i]))[0]
 
