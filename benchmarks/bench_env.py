@@ -274,11 +274,11 @@ def against(args) -> dict:
     keys = [k for k in runs["this"][0] if k.endswith("_steps_per_s") and k in runs["other"][0]]
     table = {}
     for k in keys:
-        this = float(np.median([r[k] for r in runs["this"]]))
-        other = float(np.median([r[k] for r in runs["other"]]))
+        this_runs, other_runs = [r[k] for r in runs["this"]], [r[k] for r in runs["other"]]
+        this, other = float(np.median(this_runs)), float(np.median(other_runs))
         table[k] = {"this": this, "other": other, "ratio": this / other,
-                    "paired_ratio": paired_ratio([r[k] for r in runs["this"]], [r[k] for r in runs["other"]]),
-                    "this_runs": [round(r[k]) for r in runs["this"]], "other_runs": [round(r[k]) for r in runs["other"]]}
+                    "paired_ratio": paired_ratio(this_runs, other_runs),
+                    "this_runs": [round(x) for x in this_runs], "other_runs": [round(x) for x in other_runs]}
     return {"against": table, "against_dir": os.path.abspath(args.against), "repeats": args.repeats}
 
 

@@ -313,9 +313,12 @@ def _fast_violation(P, S, i, v, u, lower0, upper0, env_lo, env_hi, rate, gap, v_
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _check_inputs(v0, u_prev, gap, v_lead, a_lead, stop_gap):
-    """0 if fine, else 1 + index of the offending field (see FIELDS in mpc.py)."""
+def _check_inputs(v0, u_prev, gap, v_lead, a_lead, stop_gap, idle):
+    """0 if fine, else 1 + index of the offending field (see FIELDS in mpc.py); rows flagged
+    ``idle`` are not read (their values are nobody's input)."""
     for i in range(v0.shape[0]):
+        if idle[i] != 0:
+            continue
         if not (np.isfinite(v0[i]) and v0[i] >= 0.0):
             return 1
         if not np.isfinite(u_prev[i]):
@@ -863,7 +866,7 @@ def _make_prepare(parallel):
 
     def prepare(P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, GL, H, B, PA, W, I, SF, SC):
         # few arguments on purpose: numba's dispatch costs ~0.1 us per argument
-        err = _check_inputs(v0, u_prev, gap, v_lead, a_lead, stop_gap)
+        err = _check_inputs(v0, u_prev, gap, v_lead, a_lead, stop_gap, I[:, I_IDLE])
         if err != 0:
             return -err
         nd = v0.shape[0]
@@ -903,8 +906,8 @@ def _make_prepare(parallel):
 
     Returns ``-code`` for invalid inputs (nothing written), else the number of drivers
     whose QP the warm active-set solver could not settle (their indices in ``I[:, I_HARD]``):
-    the caller solves those with the backend. Rows flagged in ``I[:, I_IDLE]`` are skipped
-    (output 0, path -1, nothing else written): rows do not interact, so the others' numbers
+    the caller solves those with the backend. Rows flagged in ``I[:, I_IDLE]`` are skipped,
+    their inputs unread (output 0, path -1, nothing else written): rows do not interact, so the others' numbers
     are the same with or without them. Arrays (``n`` drivers, ``N`` steps, ``M``
     bounds): ``G`` (n, 2, N, 3) follow/cruise gains; ``GL`` lead-acceleration gain sums;
     ``H`` (n, 2, 2, N, N) follow/cruise H^-1 column sums; ``B`` (n, 2, M) lower/upper

@@ -128,7 +128,6 @@ class SlotDrivers:
                 self._path_cached = "mpc+idle"
                 self._is_mpc = is_mpc
                 self._idle = np.flatnonzero(~is_mpc)
-                self._cruise = _cruise_columns(self._mpc.params.v_desired[self._idle])
             elif not is_mpc.any() and not self._baseline.delayed():
                 self._path_cached = "baselines"
             else:
@@ -139,21 +138,6 @@ class SlotDrivers:
         return self._path() == "mpc"
 
     # ------------------------------------------------------------------ step
-    def _idle_rows_cruising(self, obs: Observation, idle: np.ndarray) -> Observation:
-        """The observation the batched MPC driver gets: rows without an MPC driver (an absent
-        vehicle, a scripted profile, a baseline model) see a steady cruise at their row's
-        desired speed with nothing ahead -- a state whose plan is the unconstrained law,
-        solved in the kernel without a QP -- instead of the parked vehicle an absent slot
-        holds (a standing start with an open road: a backend QP solve every step). The
-        kernel skips them (:meth:`MPCDriver.set_idle <acc_gym.drivers.mpc.MPCDriver.set_idle>`,
-        marked by :meth:`_path`); the cruise only keeps its input check quiet. Their
-        output is discarded, and a row that gets an MPC driver is restarted by
-        :meth:`MPCDriver.set_params <acc_gym.drivers.mpc.MPCDriver.set_params>`, so no
-        present vehicle's numbers change (rows of the batch do not interact)."""
-        if not np.any(idle):
-            return obs
-        return _cruise_state(obs, idle, self._mpc.params.v_desired)
-
     def act_rows(self, rows: np.ndarray) -> np.ndarray:
         """:meth:`act` for an observation given as rows of one float64 array (see
         :meth:`MPCDriver.act_rows <acc_gym.drivers.mpc.MPCDriver.act_rows>`): when every
@@ -177,14 +161,11 @@ class SlotDrivers:
     def _act_rows_mpc_and_idle(self, rows: np.ndarray) -> np.ndarray:
         """:meth:`act` on observation rows when the rows hold MPC drivers, absent vehicles and
         scripted profiles only (the single environment's 1- and 2-vehicle scenes): the MPC
-        batch takes its array path, with the other rows set to the cruise of
-        :meth:`_idle_rows_cruising` in a copy of the rows (the same numbers as :meth:`act`)."""
+        batch takes its array path on the rows as they are, its kernel skipping the other
+        rows (marked idle by :meth:`_path`; the same numbers as :meth:`act`)."""
         mpc = self._mpc
         is_mpc = self._is_mpc
-        cruise = rows.copy()
-        m = min(rows.shape[0], self._cruise.shape[0])
-        cruise[:m, self._idle] = self._cruise[:m]
-        out = mpc.act_rows(cruise)
+        out = mpc.act_rows(rows)
         out[self._idle] = 0.0
         mode = mpc.mode.copy()
         mode[self._idle] = -1
@@ -229,7 +210,7 @@ class SlotDrivers:
         mode = np.full(self.n, -1, dtype=np.int64)
         if self._mpc is not None and np.any(self.kind == 1):
             is_mpc = self.kind == 1
-            a = self._mpc.act(self._idle_rows_cruising(obs, ~is_mpc))
+            a = self._mpc.act(obs)  # the rows without an MPC driver are skipped (marked idle by _path)
             out[is_mpc] = a[is_mpc]
             mode[is_mpc] = self._mpc.mode[is_mpc]
             self.fallbacks[is_mpc] = self._mpc.stats_column("fallback")[is_mpc]
@@ -349,9 +330,6 @@ class BaselineRows:
             model.act_into(obs, seen if delayed else obs, grp, out)
 
 
-# an idle row's steady cruise with nothing ahead, besides its speed (its v_desired)
-_CRUISE = {"a": 0.0, "gap": np.inf, "v_lead": 0.0, "a_lead": 0.0, "gap2": np.inf, "v_lead2": 0.0, "a_lead2": 0.0,
-           "stop_gap": np.inf}
 _OBS_NAMES = tuple(f.name for f in fields(Observation))  # Observation's field order (observation rows)
 
 
@@ -373,30 +351,6 @@ def _row_field(i: int) -> property:
 
 for _i, _name in enumerate(_OBS_NAMES):
     setattr(_RowFields, _name, _row_field(_i))
-
-
-def _cruise_columns(v_desired: np.ndarray) -> np.ndarray:
-    """The cruise of idle rows with speeds ``v_desired`` as columns in Observation's field order."""
-    cols = np.empty((len(_OBS_NAMES), v_desired.size))
-    for i, name in enumerate(_OBS_NAMES):
-        cols[i] = v_desired if name == "v" else _CRUISE[name]
-    return cols
-
-
-def _cruise_state(obs: Observation, idle: np.ndarray, v_desired: np.ndarray) -> Observation:
-    """``obs`` with the ``idle`` rows replaced by a steady cruise at ``v_desired`` with
-    nothing ahead."""
-    cruise = {"v": v_desired, **_CRUISE}
-    fields = {}
-    for name, value in cruise.items():
-        given = getattr(obs, name)
-        if given is None:
-            fields[name] = None
-            continue
-        arr = np.array(given, dtype=float, copy=True)
-        arr[idle] = value[idle] if isinstance(value, np.ndarray) else value
-        fields[name] = arr
-    return Observation(**fields)
 
 
 class SlotView:
