@@ -282,6 +282,14 @@ def test_idle_rows_are_skipped_and_the_others_keep_their_numbers():
     marked.set_params(1, params.take([1]))  # restarted: planned again
     marked.act(obs_for(4, 25))
     assert marked.stats["steps"][1] == 1 and marked.stats["steps"][3] == 0
+    bad = obs_for(4, 26)
+    v = np.array(bad.v, dtype=float)
+    v[3] = np.nan  # an idle row's input is nobody's: not read, not checked
+    a = marked.act(Observation.build(v=v, a=0.0, gap=bad.gap, v_lead=bad.v_lead, a_lead=-0.5))
+    assert np.isfinite(a).all() and a[3] == 0.0
+    v[0] = np.nan  # a planned row's still is
+    with pytest.raises(ValueError, match="observation.v is invalid"):
+        marked.act(Observation.build(v=v, a=0.0, gap=bad.gap, v_lead=bad.v_lead, a_lead=-0.5))
     with pytest.raises(ValueError, match="idle must be booleans of shape"):
         marked.set_idle(np.zeros(3, bool))
     with pytest.raises(ValueError, match="idle must be booleans"):
