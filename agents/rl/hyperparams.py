@@ -17,7 +17,8 @@ rl-zoo3 keys that are not keyword arguments of the algorithm:
 * ``policy`` -- always ``MlpPolicy`` here;
 * ``normalize`` -- rl-zoo3's ``VecNormalize`` settings: ``acc-gym train`` always
   normalises observations; ``"dict(norm_obs=True, norm_reward=True)"`` scales the training
-  rewards too (:func:`normalize_settings`);
+  rewards too, ``clip_obs=C`` bounds each normalised observation at ``C`` standard
+  deviations (default 10) (:func:`normalize_settings`);
 * ``env_kwargs`` -- keyword arguments of ``gym.make`` for the *training* environments
   (:func:`env_kwargs`), e.g. the scenario mixture trained on,
   ``default_scenarios: {carfollowing/varied: 0.4, singlelane/1/free-flow: 0.1, ...}`` (shares
@@ -32,6 +33,8 @@ is a learning rate (or clip range) falling linearly from 3e-4 to 0 over training
 """
 
 from __future__ import annotations
+
+import math
 
 from pathlib import Path
 
@@ -95,6 +98,9 @@ def _value(key: str, value):
     return value
 
 
+CLIP_OBS = 10.0  # VecNormalize's default bound on a normalised observation [standard deviations]
+
+
 def normalize_settings(value, gamma: float = 0.99) -> dict:
     """rl-zoo3's ``normalize`` as :class:`~stable_baselines3.common.vec_env.VecNormalize`
     settings besides ``norm_obs=True`` (always on), read as rl-zoo3 reads it: absent (None)
@@ -103,17 +109,30 @@ def normalize_settings(value, gamma: float = 0.99) -> dict:
     say, so that rl-zoo3 trains the same way; ``True`` (rl-zoo3: VecNormalize's defaults) or
     ``"dict(norm_obs=True, norm_reward=True)"`` -- returns scaled by their running standard
     deviation too (discounted with the algorithm's ``gamma``), in training only; evaluations
-    and the saved policy see unscaled rewards and only the observation statistics."""
+    and the saved policy see unscaled rewards and only the observation statistics.
+
+    ``clip_obs`` (VecNormalize's own keyword, so rl-zoo3 reads it the same way; default
+    :data:`CLIP_OBS`, 10): the bound on each normalised observation, in standard deviations,
+    kept with the run's statistics (``obs_rms.npz``) and applied by the saved policy too.
+    Why it is a setting: a feature that is 0 on most steps has a small standard deviation,
+    and 10 of them can be far short of its range -- the ``-v1`` ids' ``a_req`` has a
+    standard deviation of 0.23 m/s^2 in the shipped PPO's statistics, so a policy trained
+    with the default sees every required deceleration beyond 2.3 m/s^2 as 2.3
+    (docs/rl-training.md)."""
     if value is None:
-        return {"norm_reward": False}
+        return {"norm_reward": False, "clip_obs": CLIP_OBS}
     if value is True:
         value = {"norm_obs": True, "norm_reward": True}
     if isinstance(value, str):
         value = eval(value, {"__builtins__": {}}, {"dict": dict})  # rl-zoo3's convention
-    if not isinstance(value, dict) or value.get("norm_obs", True) is not True or set(value) - {"norm_obs", "norm_reward"}:
+    if (not isinstance(value, dict) or value.get("norm_obs", True) is not True
+            or set(value) - {"norm_obs", "norm_reward", "clip_obs"}):
         raise ValueError(f"normalize: acc-gym train always normalises observations; give True or "
-                         f"'dict(norm_obs=True, norm_reward=True|False)', got {value!r}")
-    out = {"norm_reward": bool(value.get("norm_reward", False))}
+                         f"'dict(norm_obs=True, norm_reward=True|False[, clip_obs=C])', got {value!r}")
+    clip = value.get("clip_obs", CLIP_OBS)
+    if isinstance(clip, bool) or not isinstance(clip, (int, float)) or not (math.isfinite(clip) and clip > 0):
+        raise ValueError(f"normalize: clip_obs must be a positive finite number of standard deviations, got {clip!r}")
+    out = {"norm_reward": bool(value.get("norm_reward", False)), "clip_obs": float(clip)}
     if out["norm_reward"]:
         out["gamma"] = float(gamma)
     return out

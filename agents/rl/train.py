@@ -229,7 +229,7 @@ def _train(algo: str, env_id: str, timesteps, seed, out, num_envs, eval_freq, ev
     from acc_gym_agents.rl.hyperparams import normalize_settings
 
     norm = normalize_settings((algo_kwargs or {}).get("normalize"), (algo_kwargs or {}).get("gamma", 0.99))
-    venv = VecNormalize(raw, norm_obs=True, clip_obs=10.0, **norm)
+    venv = VecNormalize(raw, norm_obs=True, **norm)  # clip_obs: the entry's, else 10 (normalize_settings)
     cls = {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[algo]
     from acc_gym_agents.rl.hyperparams import to_sb3
 

@@ -5,6 +5,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 sb3 = pytest.importorskip("stable_baselines3", reason="stable-baselines3 is not installed (pip install '.[rl]' or '.[test]')")
@@ -64,12 +65,39 @@ def test_entries_are_valid_sb3_arguments(algo):
 
 
 def test_normalize_maps_to_vecnormalize_settings():
-    assert hp.normalize_settings(None) == {"norm_reward": False}  # acc-gym train's own default
-    assert hp.normalize_settings("dict(norm_obs=True, norm_reward=False)") == {"norm_reward": False}
-    assert hp.normalize_settings(True) == {"norm_reward": True, "gamma": 0.99}  # as rl-zoo3 reads it
-    assert hp.normalize_settings("dict(norm_obs=True, norm_reward=True)", 0.98) == {"norm_reward": True, "gamma": 0.98}
+    off = {"norm_reward": False, "clip_obs": 10.0}  # acc-gym train's own default (VecNormalize's clip)
+    assert hp.normalize_settings(None) == off
+    assert hp.normalize_settings("dict(norm_obs=True, norm_reward=False)") == off
+    assert hp.normalize_settings(True) == {"norm_reward": True, "gamma": 0.99, "clip_obs": 10.0}  # as rl-zoo3 reads it
+    assert hp.normalize_settings("dict(norm_obs=True, norm_reward=True)", 0.98) == {"norm_reward": True, "gamma": 0.98,
+                                                                                    "clip_obs": 10.0}
+    assert hp.normalize_settings("dict(norm_obs=True, norm_reward=False, clip_obs=50)") == {"norm_reward": False,
+                                                                                           "clip_obs": 50.0}
     with pytest.raises(ValueError, match="always normalises observations"):
         hp.normalize_settings("dict(norm_obs=False)")
+    with pytest.raises(ValueError, match="always normalises observations"):
+        hp.normalize_settings("dict(norm_obs=True, clip_ob=50)")  # a misspelt key is an error
+    for bad in ("0", "-5", "float('nan')", "True", "'50'"):
+        with pytest.raises(ValueError, match="clip_obs must be a positive finite number"):
+            hp.normalize_settings({"norm_obs": True, "clip_obs": eval(bad)})
+
+
+def test_clip_obs_reaches_the_run_and_the_saved_policy(tmp_path):
+    """A run trained with ``clip_obs`` C keeps C with its statistics and its policy clips there:
+    a normalised feature beyond 10 standard deviations is no longer cut at 10."""
+    from acc_gym_agents.rl.policy import SB3Policy, load_policy
+
+    kw = {"n_steps": 32, "batch_size": 32, "n_epochs": 1, "normalize": "dict(norm_obs=True, norm_reward=False, clip_obs=50)"}
+    run = train("ppo", "acc_gym/CarFollowing-v1", timesteps=64, seed=0, out=tmp_path / "run", num_envs=2,
+                eval_freq=10**9, eval_episodes=1, algo_kwargs=kw)
+    rms = np.load(run / "obs_rms.npz")
+    assert float(rms["clip"]) == 50.0
+    policy = load_policy(run)
+    assert policy.clip == 50.0
+    o = rms["mean"].astype(np.float32).copy()
+    o[12] = rms["mean"][12] - 30.0 * np.sqrt(rms["var"][12] + 1e-8)  # a_req 30 standard deviations below its mean
+    assert policy.normalise(o)[12] == pytest.approx(-30.0, rel=1e-3)
+    assert SB3Policy(policy.model, rms["mean"], rms["var"]).normalise(o)[12] == -10.0  # the default clip cuts it
 
 
 def test_zoo_strings_are_converted_as_rl_zoo3_converts_them():
