@@ -35,7 +35,6 @@ is a learning rate (or clip range) falling linearly from 3e-4 to 0 over training
 from __future__ import annotations
 
 import math
-
 from pathlib import Path
 
 DIRECTORY = Path(__file__).resolve().parent / "hyperparams"
