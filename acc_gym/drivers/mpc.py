@@ -492,8 +492,8 @@ class MPCDriver:
     def set_idle(self, idle: np.ndarray) -> None:
         """Mark the rows whose output nobody reads (``idle``, booleans ``(n,)``): :meth:`act`
         skips them -- their inputs are not read (nor checked), their action is 0 and their
-        mode, plan and statistics are left as they were -- until :meth:`set_params` restarts them (which clears the mark) or this is
-        called again. The other rows' numbers are the same either way (rows do not
+        mode, plan and statistics are left as they were -- until :meth:`set_params` restarts
+        them (which clears the mark) or this is called again. The other rows' numbers are the same either way (rows do not
         interact). :class:`~acc_gym.drivers.slots.SlotDrivers` marks its rows without an MPC
         driver (absent vehicles, profiles, baseline models): before, it fed them a made-up
         cruise, the kernel planned it and the result was thrown away (issue 35)."""

@@ -165,8 +165,7 @@ class SlotDrivers:
         rows (marked idle by :meth:`_path`; the same numbers as :meth:`act`)."""
         mpc = self._mpc
         is_mpc = self._is_mpc
-        out = mpc.act_rows(rows)
-        out[self._idle] = 0.0
+        out = mpc.act_rows(rows)  # 0 on the idle rows: the kernel writes nothing else there
         mode = mpc.mode.copy()
         mode[self._idle] = -1
         self.fallbacks[is_mpc] = mpc.stats_column("fallback")[is_mpc]
