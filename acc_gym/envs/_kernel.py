@@ -281,11 +281,11 @@ def finish(active, reward, bo, k, steps, terminate_on_violation, episode_return,
 REACH_BAND = 0.2  # [-] MarginReward's reach term: the score's band, 0 < Q < 0.2 Gapsafe (ScoringConfig.band_width)
 # the terms of margin_reward_rows() (MarginReward.TERMS), in info["rewards"] order
 MARGIN_TERMS = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "overspeed",
-                "reach", "behind", "standstill")
+                "reach", "behind", "standstill", "demand")
 # margin_reward_rows()'s weights and constants, in the order MarginReward._w holds them
 MARGIN_W = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "peak",
             "slope", "response_decel", "jerk_scale", "max_step_cost", "A_COUNTED", "JERK_COUNTED", "E_COUNTED",
-            "overspeed", "overspeed_scale", "reach", "behind", "standstill", "standstill_gap", "STOPPED")
+            "overspeed", "overspeed_scale", "reach", "behind", "standstill", "standstill_gap", "STOPPED", "demand")
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -302,9 +302,9 @@ def margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, r
     """
     (band_w, eff_w, speed_w, resp_w, comfort_w, jerk_w, safety_w, coll_w, lag_w, peak, slope, resp_decel,
      jerk_scale, max_cost, a_counted, jerk_counted, e_counted, over_w, over_scale, reach_w, behind_w, stand_w, stand_gap,
-     stopped) = (
+     stopped, demand_w) = (
         w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12], w[13], w[14], w[15], w[16],
-        w[17], w[18], w[19], w[20], w[21], w[22], w[23])
+        w[17], w[18], w[19], w[20], w[21], w[22], w[23], w[24])
     width = max(peak, 1.0 - peak)
     n = fl.shape[1]
     for i in range(n):
@@ -350,6 +350,13 @@ def margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, r
             stop_gap = gap - v * v / (2.0 * resp_decel)  # [m] left if the ego braked at the proper response from now
             stand = min(max((stand_gap - stop_gap) / stand_gap, 0.0), 1.0)
         terms[12, i] = -stand_w * stand
+        demand = 0.0
+        vl = fl[F_VLEAD, i]
+        if fl[F_Q, i] < 0.0 and gap > 0.0 and math.isfinite(gap) and v > vl:
+            a_req = min((v - vl) * (v - vl) / (2.0 * gap), a_counted)  # [m/s^2] paper 001's, counted up to 9
+            if a_req > resp_decel:
+                demand = min(max((a + a_req) / (a_req - resp_decel), 0.0), 1.0)
+        terms[13, i] = -demand_w * demand
         total = 0.0
         for j in range(terms.shape[0]):
             total += terms[j, i]

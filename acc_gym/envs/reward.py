@@ -210,12 +210,17 @@ class MarginReward:
                     (``v_lead < 0.5 m/s``, any distance), ``d = gap - v^2 / (2 a_resp)``
                     the gap a stop at the proper response would leave, ``s0``
                     ``standstill_gap`` (3 m)
+    demand          ``-w clip((a + a_req) / (a_req - a_resp), 0, 1)`` while ``Q < 0`` and      0.0
+                    paper 001's ``a_req = (v - v_lead)^2 / (2 gap)`` (closing; counted up
+                    to 9 m/s^2) exceeds ``a_resp``: braking weaker than the deceleration
+                    that stops the closing in the gap left, graded from ``a_req`` (nothing)
+                    to ``a_resp`` (all of it, where ``response`` takes over)
     ==============  ====================================================================  ==========
 
     The comfort and jerk terms count ``|a|`` up to 9 m/s^2 and the jerk up to 30 m/s^3, and
     the speed term's slope stops at ``e = 5`` (a parked ego), so a step costs at most
-    :attr:`max_step_cost` (5.58 with the defaults; ``overspeed`` adds ``5 w``, ``reach``, ``behind`` and
-    ``standstill`` ``w``).
+    :attr:`max_step_cost` (5.58 with the defaults; ``overspeed`` adds ``5 w``, ``reach``, ``behind``,
+    ``standstill`` and ``demand`` ``w``).
 
     Why these changes to :class:`CriteriaReward`:
 
@@ -238,7 +243,7 @@ class MarginReward:
       followable vehicle (an ACC drives at its set speed until it closes in), and the lag
       term grows without a plateau.
 
-    Four terms are off in the ``-v1`` ids' own reward (weight 0, so the ids' rewards are as
+    Five terms are off in the ``-v1`` ids' own reward (weight 0, so the ids' rewards are as
     released in 0.8.0); the shipped PPO training settings turn ``reach`` on (acc-gym 0.11.0,
     ``agents/rl/hyperparams/ppo.yml``: ``env_kwargs: {reward_fn: {reach: 0.5}}``; an env's
     ``reward_fn=`` takes the weights as a mapping):
@@ -278,6 +283,14 @@ class MarginReward:
       followable, and no term covers it. With it (PPO, five seeds, acc-gym 0.14.0) no seed
       failed behind a stopped lead by creeping, but cut-in collisions came back (7 in 2,000
       validation episodes against the shipped settings' 2). Not in the shipped settings.
+    * **demand** (acc-gym 0.17.0) grades braking beyond the proper response. ``response``
+      is silent once the ego brakes at 2 m/s^2 or more, while ``comfort`` charges
+      ``0.1 (a / 3)^2`` a step: releasing from 5.3 to 2.1 m/s^2 earns 0.26 a step, and the
+      PPO runs that collided in emergency stops (0.12.0 seed 3, 0.15.0 and 0.16.0 candidates)
+      learnt exactly that release while ``a_req`` rose past 4 m/s^2
+      (docs/rl-training.md). With ``demand`` 1 the same release costs 0.91 a step. The
+      score's optimum is not moved: its proper response asks for 2 m/s^2 or more while
+      ``Q < 0``, and braking at ``a_req`` meets it (a collision scores 0).
     """
 
     band: float = 1.0
@@ -294,6 +307,7 @@ class MarginReward:
     reach: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); the shipped PPO training sets 0.5
     behind: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.13.0, not shipped
     standstill: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.14.0, not shipped
+    demand: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.17.0
     standstill_gap: float = 3.0  # [m] the standstill term charges a stop (at the proper response) closer than this
     peak: float = 0.5  # [-] u_t where the efficiency tent is highest (0: the safety boundary, 1: the band's far edge)
     slope: float = 0.25  # [-] the speed term's slope beyond 20 % off the set speed, per 20 %
@@ -301,7 +315,7 @@ class MarginReward:
     jerk_scale: float = 10.0  # [m/s^3]
 
     TERMS = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "overspeed",
-             "reach", "behind", "standstill")
+             "reach", "behind", "standstill", "demand")
 
     def __post_init__(self) -> None:
         _check_weights(self, ("response_decel", "jerk_scale", "overspeed_scale", "standstill_gap"))
@@ -325,7 +339,7 @@ class MarginReward:
         """The most the terms other than the collision can charge in one step (a_comfort 3 m/s^2)."""
         return (self.speed * self.slope * (self.E_COUNTED - 1.0) + self.response + self.comfort * (self.A_COUNTED / 3.0) ** 2
                 + self.jerk * (self.JERK_COUNTED / self.jerk_scale) ** 2 + self.safety + self.lag
-                + self.overspeed * self.E_COUNTED + self.reach + self.behind + self.standstill)
+                + self.overspeed * self.E_COUNTED + self.reach + self.behind + self.standstill + self.demand)
 
     def from_criteria(self, fl: np.ndarray, bo: np.ndarray, set_speed: np.ndarray, tau1: np.ndarray,
                       steps: np.ndarray, k: np.ndarray, a_comfort: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -375,6 +389,12 @@ class MarginReward:
             stopped = np.isfinite(gap) & (v_lead < self.STOPPED)  # a stopped vehicle ahead
             stop_gap = gap - v * v / (2.0 * self.response_decel)  # [m] left if the ego braked at the proper response
             stand = np.where(stopped, np.clip((self.standstill_gap - stop_gap) / self.standstill_gap, 0.0, 1.0), 0.0)
+            # [m/s^2] paper 001's required deceleration where closing, counted up to A_COUNTED
+            closing = (q < 0) & (gap > 0) & np.isfinite(gap) & (v > v_lead)
+            a_req = np.where(closing, np.minimum((v - v_lead) * (v - v_lead) / (2.0 * gap), self.A_COUNTED), 0.0)
+            demanding = closing & (a_req > self.response_decel)
+            demand = np.where(demanding, np.clip((np.asarray(s.a, dtype=float) + a_req)
+                                                 / (a_req - self.response_decel), 0.0, 1.0), 0.0)
         steps_left = 0.0 if s.steps_left is None else np.maximum(np.asarray(s.steps_left, dtype=float), 0.0)
         terms = {
             "band": self.band * (following & np.asarray(s.in_band, dtype=bool)),
@@ -393,6 +413,7 @@ class MarginReward:
             "reach": -self.reach * reach,
             "behind": -self.behind * behind.astype(float),
             "standstill": -self.standstill * stand,
+            "demand": -self.demand * demand,
         }
         terms = {k: np.asarray(val, dtype=float) for k, val in terms.items()}
         return sum(terms.values()), terms

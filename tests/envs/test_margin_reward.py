@@ -155,8 +155,41 @@ def test_the_standstill_term_equals_hand_computations():
         MarginReward(standstill_gap=0.0)
 
 
+def test_the_demand_term_equals_hand_computations():
+    """Off by default; with a weight, while Q < 0 and paper 001's required deceleration
+    a_req = (v - v_lead)^2 / (2 gap) exceeds the proper response (2 m/s^2), braking weaker
+    than a_req costs in proportion between a_req (nothing) and 2 m/s^2 (all of it, where the
+    response term takes over); a_req is counted up to 9 m/s^2."""
+    fn = MarginReward(demand=1.0)
+    # 30 m/s, 40 m behind a lead at 10 m/s: a_req = 20^2 / 80 = 5 m/s^2; Gapsafe = 45 + 56.25 - 6.25 = 95 m > 40
+    closing = dict(v=30.0, gap=40.0, v_lead=10.0)
+    assert reward(state(**closing, a=-2.0))[1]["demand"] == 0.0  # default: off
+    for a, charged in ((0.0, 1.0), (-2.0, 1.0), (-3.5, 0.5), (-5.0, 0.0), (-7.0, 0.0)):
+        assert reward(state(**closing, a=a), fn)[1]["demand"] == pytest.approx(-charged), a
+    assert reward(state(**closing, a=-3.5), fn)[1]["response"] == 0.0  # beyond 2 m/s^2 the response term is silent
+    # towards a stopped car 40 m ahead at 30 m/s: a_req = 11.25, counted as 9: braking at 8 leaves 1 / 7
+    assert reward(state(30.0, 40.0, 0.0, a=-8.0), fn)[1]["demand"] == pytest.approx(-1.0 / 7.0)
+    # a_req <= 2 m/s^2 with Q < 0 (20 m/s, 10 m behind a lead at 15: a_req 1.25): the response term's case alone
+    s = state(20.0, 10.0, 15.0, a=0.0)
+    assert s.q[0] < 0 and reward(s, fn)[1]["demand"] == 0.0 and reward(s, fn)[1]["response"] == -1.0
+    assert reward(state(20.0, 100.0, 19.0), fn)[1]["demand"] == 0.0  # closing with Q > 0
+    assert reward(state(10.0, 5.0, 12.0), fn)[1]["demand"] == 0.0  # opening (Q < 0)
+    assert reward(state(10.0), fn)[1]["demand"] == 0.0  # nothing ahead
+    assert fn.max_step_cost == pytest.approx(MarginReward().max_step_cost + 1.0)
+    # the emergency release the 0.15.0 / 0.16.0 PPO runs learnt (docs/rl-training.md): 15 m/s, 16 m behind a lead
+    # rolling at 5 m/s (a_req 3.125). The shipped training reward pays releasing from 5.3 to 2.1 m/s^2 by
+    # comfort's 0.1 (5.3^2 - 2.1^2) / 9 = 0.263; with the term, releasing costs 0.911 more than that
+    hard, soft = state(15.0, 16.0, 5.0, a=-5.3), state(15.0, 16.0, 5.0, a=-2.1)
+    assert reward(soft, SHIPPED)[0] - reward(hard, SHIPPED)[0] == pytest.approx(0.1 * (5.3 ** 2 - 2.1 ** 2) / 9)
+    with_term = MarginReward(reach=0.5, demand=1.0)
+    assert reward(hard, with_term)[0] - reward(soft, with_term)[0] == pytest.approx(
+        (3.125 - 2.1) / 1.125 - 0.1 * (5.3 ** 2 - 2.1 ** 2) / 9)
+    with pytest.raises(ValueError, match="demand"):
+        MarginReward(demand=-1.0)
+
+
 @pytest.mark.parametrize("fn", [MarginReward(), SHIPPED, MarginReward(overspeed=1.0, reach=0.5, behind=1.0,
-                                                                      standstill=1.0)],
+                                                                      standstill=1.0, demand=1.0)],
                          ids=["default", "shipped", "every term"])
 def test_no_step_costs_more_than_max_step_cost(fn):
     rng = np.random.default_rng(0)
