@@ -383,7 +383,8 @@ class MarginReward:
         u = np.nan_to_num(np.asarray(s.u, dtype=float), nan=1.0)
         tent = np.maximum(0.0, 1.0 - np.abs(u - self.peak) / width)
         q = np.asarray(s.q, dtype=float)
-        short = np.asarray(s.a, dtype=float) + self.response_decel
+        a = np.asarray(s.a, dtype=float)  # [m/s^2]
+        short = a + self.response_decel
         from acc_gym.envs._kernel import REACH_BAND
 
         gs = np.asarray(s.gap_safe, dtype=float)
@@ -397,7 +398,7 @@ class MarginReward:
             closing = (q < 0) & (gap > 0) & np.isfinite(gap) & (v > v_lead)
             a_req = np.where(closing, np.minimum((v - v_lead) * (v - v_lead) / (2.0 * gap), self.A_COUNTED), 0.0)
             demanding = closing & (a_req > self.response_decel)
-            demand = np.where(demanding, np.clip((np.asarray(s.a, dtype=float) + a_req)
+            demand = np.where(demanding, np.clip((a + a_req)
                                                  / (a_req - self.response_decel), 0.0, 1.0), 0.0)
         steps_left = 0.0 if s.steps_left is None else np.maximum(np.asarray(s.steps_left, dtype=float), 0.0)
         terms = {
@@ -405,7 +406,7 @@ class MarginReward:
             "efficiency": self.efficiency * np.where(following, tent, 0.0),
             "speed": self.speed * np.where(np.asarray(s.free, dtype=bool) | behind, speed, 0.0),
             "response": -self.response * np.where(q < 0, np.clip(short / self.response_decel, 0.0, 1.0), 0.0),
-            "comfort": -self.comfort * (np.minimum(np.abs(np.asarray(s.a, dtype=float)), self.A_COUNTED)
+            "comfort": -self.comfort * (np.minimum(np.abs(a), self.A_COUNTED)
                                         / s.a_comfort) ** 2,
             "jerk": -self.jerk * (np.minimum(np.abs(np.asarray(s.jerk, dtype=float)), self.JERK_COUNTED)
                                   / self.jerk_scale) ** 2,
