@@ -25,6 +25,15 @@ run (the leaderboard's suites use several seeds as "several drivers"):
 braking at 2-8 m/s^2 (gentle to emergency) and a road of 1.5-3 km (so that the faster
 runs have room to cruise and dip).
 
+``carfollowing/emergency`` (not in the paper; for training and diagnosis, acc-gym 0.18.0) is
+the final stop alone: the ego follows the lead at ``speed_limit`` (40-130 km/h), ``headway``
+1-3 s behind (bumper gap over the ego's speed) and ``v_rel`` (lead minus ego, within
++-2 m/s) slower or faster; after ``t_brake`` (1-6 s) the lead brakes at ``brake_decel``
+(3-8 m/s^2) to a stop and stands ``hold`` (4 s). The road ends 100 m past the lead's stop
+(:data:`EMERGENCY_ROAD_MARGIN`). Decision: the box is kept inside what a careful driver
+avoids (1 s is the shortest headway, 8 m/s^2 the hardest braking, the ego's own limit):
+``tests/scenarios/test_catalogue.py`` runs ``cc-driver`` through its 16 corners.
+
 Parameters (all with defaults; ``speed_limit`` comes from the id): ``brake_decel`` normal
 (6.5, 0.7) m/s^2 in [5, 8] (hard but below the tyre limit of about 8.5 m/s^2),
 ``road_length`` 1000 m, ``start_gap`` 20 m, ``stop_margin`` 50 m, ``hold`` 8 s, and the
@@ -136,3 +145,49 @@ register(ScenarioType(
      "stop_margin": Constant(50.0), "hold": Constant(8.0), "time_gap": Constant(1.5)},
     _build, positive=_POSITIVE, nonnegative=frozenset({"hold"}),
     units={**_UNITS, "brake_decel": "[m/s^2] the lead's braking to its final stop"}, in_paper=False))
+
+
+# --- emergency stops from steady following, for training (not in the paper) ------------------
+
+EMERGENCY_ROAD_MARGIN = 100.0  # [m] road left beyond the lead's stop (nothing there to reach)
+
+
+def emergency_profile(v_lead: float, t_brake: float, brake_decel: float, hold: float) -> SpeedProfile:
+    """The lead's profile in ``carfollowing/emergency``: ``t_brake`` [s] at ``v_lead`` [m/s],
+    braking at ``brake_decel`` [m/s^2] to a stop, standing ``hold`` [s]."""
+    return SpeedProfile.from_segments(v_lead, [(0.0, t_brake), (-brake_decel, v_lead / brake_decel), (0.0, hold)])
+
+
+def _build_emergency(stype: ScenarioType, p: dict, rng: np.random.Generator, drivers: str, seed: int) -> Scenario:
+    v_lead = p["speed_limit"] / 3.6  # [m/s]
+    v_ego = v_lead - p["v_rel"]  # [m/s] (v_rel: lead minus ego, as in the single-lane family)
+    if v_ego <= 0.0:
+        raise ValueError(f"v_rel {p['v_rel']!r} m/s of {stype.id!r} leaves the ego no speed "
+                         f"(lead at {v_lead:.3f} m/s): it must be below the lead's speed")
+    gap = p["headway"] * v_ego  # [m] bumper to bumper
+    x_lead = gap + LENGTH  # the lead's front bumper (the ego's front bumper at 0)
+    profile = emergency_profile(v_lead, p["t_brake"], p["brake_decel"], max(p["hold"], 0.2))
+    x_stop = x_lead + v_lead * p["t_brake"] + v_lead ** 2 / (2.0 * p["brake_decel"])
+    vehicles = (VehicleSpec("SV", 0.0, v_ego, 0, None, None, LENGTH),
+                VehicleSpec("POV", x_lead, v_lead, 0, DriverSpec.from_profile(profile), None, LENGTH))
+    return Scenario(id=stype.id, seed=seed, params=p, vehicles=vehicles, duration=profile.duration,
+                    set_speed=v_lead, time_gap=p["time_gap"], road=Road(3.75, 1, x_stop + EMERGENCY_ROAD_MARGIN),
+                    drivers=drivers, description=stype.description)
+
+
+register(ScenarioType(
+    "carfollowing/emergency", "carfollowing",
+    "Emergency stops from steady following, for training: the ego follows the lead at a speed limit anywhere "
+    "in 40-130 km/h, 1-3 s behind, and after 1-6 s the lead brakes at 3-8 m/s^2 to a stop (paper 003's final "
+    "stop without the kilometre before it).",
+    {"speed_limit": Normal(85.0, 60.0, low=40.0, high=130.0), "headway": Normal(1.6, 0.5, low=1.0, high=3.0),
+     "v_rel": Normal(0.0, 1.0, low=-2.0, high=2.0), "t_brake": Normal(3.0, 1.5, low=1.0, high=6.0),
+     "brake_decel": Normal(6.0, 1.5, low=3.0, high=8.0), "hold": Constant(4.0), "time_gap": Constant(1.5)},
+    _build_emergency, positive=frozenset({"speed_limit", "headway", "t_brake", "brake_decel", "time_gap"}),
+    nonnegative=frozenset({"hold"}), in_paper=False,
+    units={"speed_limit": "[km/h] the lead's speed and the ego's set speed",
+           "headway": "[s] initial bumper gap over the ego's speed",
+           "v_rel": "[m/s] lead's speed minus the ego's at the start",
+           "t_brake": "[s] the lead's steady driving before it brakes",
+           "brake_decel": "[m/s^2] the lead's braking to its stop",
+           "hold": "[s] standing time at the end", "time_gap": "[s] ego's nominal time gap"}))

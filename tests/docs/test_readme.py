@@ -99,7 +99,7 @@ def test_the_python_blocks_run_in_order(workdir, monkeypatch):
         exec(compile(block, f"README python block {k}", "exec"), ns)
     # what the blocks claim, checked
     assert ns["tr"].gap[:, 1].min() > 0
-    assert len(ns["scenarios"].list_scenarios()) == 110
+    assert len(ns["scenarios"].list_scenarios()) == 111
     assert ns["list_suites"]() == ["carfollowing-v1", "malicious-v3", "ncap-v1", "ncap-v2", "singlelane-v3"]
     assert 0.0 <= ns["report"].score <= 100.0
 

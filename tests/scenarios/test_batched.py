@@ -55,7 +55,7 @@ def test_the_normal_inverse_cdf_is_scipys():
 
 
 @pytest.mark.parametrize("sid", ["singlelane/3/lane-change+cut-in", "singlelane/2/car-following", "carfollowing/varied",
-                                 "stopandgo"])
+                                 "carfollowing/emergency", "stopandgo"])
 def test_a_scenarios_parameters_are_a_function_of_its_id_and_seed_alone(sid):
     stype = scenario_type(sid)
     seeds = list(range(40, 90))

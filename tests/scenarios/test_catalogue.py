@@ -250,3 +250,61 @@ def test_carfollowing_120_start_up_that_leaves_no_room_is_drawn_again(seed):
     assert tr.x[-1, 0, 1] == pytest.approx(950.0, abs=1.0) and tr.v[-1, 0, 1] == 0.0
     with pytest.raises(ValueError, match="road is too short"):
         build("carfollowing/120", {"road_length": 300.0}, seed=seed)
+
+
+# ----------------------------------------------------------------------------- emergency stops (training)
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
+def test_emergency_layout_and_lead_profile(seed):
+    """``carfollowing/emergency``: steady following, then the lead brakes at ``brake_decel``
+    to a stop and stands for ``hold``; every number below is recomputed from the params."""
+    sc = build("carfollowing/emergency", seed=seed)
+    p = sc.params
+    ego, lead = sc.vehicles
+    v_lead = p["speed_limit"] / 3.6
+    assert 40.0 <= p["speed_limit"] <= 130.0 and 1.0 <= p["headway"] <= 3.0 and -2.0 <= p["v_rel"] <= 2.0
+    assert 1.0 <= p["t_brake"] <= 6.0 and 3.0 <= p["brake_decel"] <= 8.0 and p["hold"] == 4.0
+    assert ego.v0 == pytest.approx(v_lead - p["v_rel"]) and lead.v0 == pytest.approx(v_lead)
+    assert sc.set_speed == pytest.approx(v_lead) and sc.time_gap == 1.5
+    assert lead.x0 - lead.length - ego.x0 == pytest.approx(p["headway"] * ego.v0)  # bumper to bumper
+    t_stop = p["t_brake"] + v_lead / p["brake_decel"]
+    assert lead.driver.model == "profile"
+    assert np.allclose(lead.driver.times, [0.0, p["t_brake"], t_stop, t_stop + 4.0])
+    assert np.allclose(lead.driver.speeds, [v_lead, v_lead, 0.0, 0.0])
+    assert sc.duration == pytest.approx(t_stop + 4.0)
+    x_stop = lead.x0 + v_lead * p["t_brake"] + v_lead ** 2 / (2 * p["brake_decel"])
+    assert sc.road.length == pytest.approx(x_stop + 100.0)
+    # the simulated lead brakes as stated and stops where computed
+    tr = simulate(sc, ConstantSpeed())
+    assert tr.x[-1, 0, 1] == pytest.approx(x_stop, abs=0.5 * v_lead * sc.dt)
+    assert np.isclose(tr.a[:, 0, 1], -p["brake_decel"], rtol=0, atol=1e-6).sum() >= v_lead / p["brake_decel"] / sc.dt - 2
+
+
+def test_emergency_parameters_are_checked():
+    with pytest.raises(ValueError, match=r"v_rel 12\.0 m/s of 'carfollowing/emergency' leaves the ego no speed"):
+        build("carfollowing/emergency", {"speed_limit": 40.0, "v_rel": 12.0})
+    with pytest.raises(ValueError, match="'headway' of 'carfollowing/emergency' must be > 0"):
+        build("carfollowing/emergency", {"headway": -1.0})
+
+
+def test_every_corner_of_the_emergency_family_is_preventable():
+    """The careful and competent driver of UN R157 (``cc-driver``) stops behind the lead in
+    each of the family's 16 corners (40/130 km/h, 1/3 s behind, 2 m/s^2 closing or opening,
+    3/8 m/s^2), braking 1 s after the start: the family trains avoidable stops only."""
+    import itertools
+
+    import gymnasium as gym
+
+    import acc_gym  # noqa: F401
+    from acc_gym.evaluation.runner import load_controller, run_episode
+
+    env = gym.make("acc_gym/CarFollowing-v1")
+    driver = load_controller("cc-driver")
+    gaps = []
+    for kmh, hw, vr, dec in itertools.product((40.0, 130.0), (1.0, 3.0), (-2.0, 2.0), (3.0, 8.0)):
+        sc = build("carfollowing/emergency", {"speed_limit": kmh, "headway": hw, "v_rel": vr, "t_brake": 1.0,
+                                              "brake_decel": dec}, seed=0)
+        info, tr = run_episode(env, driver, scenario=sc, record=True)
+        assert not info["report"]["metrics"]["collision"], (kmh, hw, vr, dec)
+        gaps.append(float(tr.gap[:, 0, 0].min()))  # [m] closest approach (it ends creeping to its standstill gap)
+    env.close()
+    assert min(gaps) > 1.0, gaps

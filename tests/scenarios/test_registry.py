@@ -33,11 +33,12 @@ def test_families_and_listing():
     assert families() == ["carfollowing", "ncap", "ncap2026", "singlelane", "stopandgo"]
     by_family = {f: list_scenarios(f) for f in families()}
     assert sorted(sum(by_family.values(), [])) == sorted(ALL)  # a partition
-    assert len(ALL) == len(set(ALL)) == 23 + 3 + 1 + 24 + 1 + 58  # carfollowing/varied (issue 33), ncap2026 (36)
+    assert len(ALL) == len(set(ALL)) == 23 + 3 + 1 + 1 + 24 + 1 + 58  # carfollowing/varied and /emergency (issue 33), ncap2026 (36)
     for f, ids in by_family.items():
         assert all(scenario_type(i).family == f for i in ids)
     assert by_family["stopandgo"] == ["stopandgo"]
-    assert by_family["carfollowing"] == ["carfollowing/60", "carfollowing/90", "carfollowing/120", "carfollowing/varied"]
+    assert by_family["carfollowing"] == ["carfollowing/60", "carfollowing/90", "carfollowing/120", "carfollowing/varied",
+                                        "carfollowing/emergency"]
     assert [i for i in by_family["carfollowing"] if scenario_type(i).in_paper] == by_family["carfollowing"][:3]
 
 
