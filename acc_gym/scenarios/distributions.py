@@ -32,7 +32,6 @@ from functools import cached_property
 from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
-from scipy.integrate import quad
 from scipy.special import ndtr, ndtri
 
 _LOG_2PI = math.log(2.0 * math.pi)
@@ -441,6 +440,8 @@ class BivariateNormal:
         def conditional(u: float) -> float:
             z0 = float(ndtri(u))
             return float(ndtr((b1 - rho * z0) / r) - ndtr((a1 - rho * z0) / r))
+
+        from scipy.integrate import quad  # late: scipy.integrate costs a second of every process's import
 
         val, _ = quad(conditional, float(ndtr(a0)), float(ndtr(b0)), epsabs=0.0, epsrel=1e-11, limit=500)
         return val

@@ -296,3 +296,24 @@ def test_one_draw_equals_the_array_draw(law):
         arr = law.sample(np.random.default_rng(seed), size=1)
         assert type(one) is float and one == arr[0]
         assert law.low <= one <= law.high
+
+
+def test_episodes_run_without_scipy_integrate():
+    """scipy.integrate (about a second of every process's start: leaderboard controllers,
+    campaign workers, CLI calls) is imported only by the bivariate law's box mass
+    (``pdf``/``logpdf``/calibration), never by drawing scenarios or stepping an env."""
+    import subprocess
+    import sys
+
+    code = ("import sys\n"
+            "sys.modules['scipy.integrate'] = None  # importing it now fails\n"
+            "import gymnasium as gym, acc_gym\n"
+            "env = gym.make('acc_gym/SingleLane-v1', default_scenarios={'singlelane/3/lane-change+cut-in': 1.0})\n"
+            "env.reset(seed=3)\n"
+            "done = False\n"
+            "while not done:\n"
+            "    obs, r, term, trunc, info = env.step(env.action_space.sample() * 0)\n"
+            "    done = term or trunc\n"
+            "print(info['score'] >= 0)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=False)
+    assert out.returncode == 0 and out.stdout.split()[-1] == "True", out.stderr[-2000:]
