@@ -211,3 +211,13 @@ def test_rl_curves_twin_curve_equals_training_the_twin_id(tmp_path):
     assert twin["mean_score"] != cf["mean_score"]  # scored on the single-lane scenarios, not car-following's
     with pytest.raises(SystemExit, match="different ppo entries"):
         rl_curves.twin_curve(cf, "acc_gym/CarFollowing-v0", tmp_path)
+
+
+def test_bench_startup_json_keys():
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_startup.py"), "--json", "--repeats", "1"],
+                       capture_output=True, text=True, check=True, cwd=ROOT)
+    out = json.loads(r.stdout)
+    for key in ("startup_import_s", "startup_env_s", "startup_env_scipy_integrate_s"):
+        assert out[key] > 0 and out[key + "_runs"] == [out[key]]  # one round: the median is that run
+    assert out["scipy_integrate_cost_s"] == out["startup_env_scipy_integrate_s"] - out["startup_env_s"]
+    assert out["startup_import_s"] < out["startup_env_s"]  # making and stepping an env imports and loads more
