@@ -441,7 +441,7 @@ class BivariateNormal:
             z0 = float(ndtri(u))
             return float(ndtr((b1 - rho * z0) / r) - ndtr((a1 - rho * z0) / r))
 
-        from scipy.integrate import quad  # late: scipy.integrate adds about 0.2 s to every process start
+        from scipy.integrate import quad  # late: scipy.integrate adds about 0.5 s to every process start
 
         val, _ = quad(conditional, float(ndtr(a0)), float(ndtr(b0)), epsabs=0.0, epsrel=1e-11, limit=500)
         return val

@@ -299,7 +299,7 @@ def test_one_draw_equals_the_array_draw(law):
 
 
 def test_episodes_run_without_scipy_integrate():
-    """scipy.integrate (about 0.2 s of every process start: leaderboard controllers,
+    """scipy.integrate (about 0.5 s of every process start: leaderboard controllers,
     campaign workers, CLI calls) is imported only by the bivariate law's box mass
     (``pdf``/``logpdf``/calibration), never by drawing scenarios or stepping an env."""
     import subprocess
