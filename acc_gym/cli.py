@@ -409,6 +409,14 @@ def _print_summary(controller: str, env_id: str, s: dict) -> None:
     os_ = "n/a" if s["mean_speed_overshoot"] is None else f"{s['mean_speed_overshoot']:.2f}"
     print(f"  comfortable {s['share_comfortable']:.1%}, safe spacing {safe}, min TTC {ttc}, "
           f"max jerk {s['max_jerk']:.2f} m/s^3, mean speed overshoot {os_}")
+    groups = s.get("by_scenario") or {}
+    if groups:
+        width = max(len(sid) for sid in groups)
+        print(f"  {'by scenario':<{width}}  episodes  score  qualified  collisions  unqualified items")
+        for sid, g in sorted(groups.items(), key=lambda kv: (-kv[1]["episodes"], kv[0])):
+            failed = ", ".join(f"{name} {n}" for name, n in g["failed"].items() if n) or "-"
+            print(f"  {sid:<{width}}  {g['episodes']:>8}  {g['mean_score']:>5.1f}  {g['share_qualified']:>9.0%}  "
+                  f"{g['collisions']:>10}  {failed}")
 
 
 def _add_leaderboard_parser(sub) -> None:

@@ -218,6 +218,37 @@ def evaluate(controller, env_id: str = "acc_gym/CarFollowing-v0", episodes: int 
         env.close()
     out = summarise(reports, scenarios)
     out.update(preventability(collided, env_id, env_kwargs))
+    out["by_scenario"] = by_scenario(reports, scenarios)
+    return out
+
+
+def by_scenario(reports: list[dict], scenarios: list[str]) -> dict:
+    """Per scenario id (paper 003's speed bands are ids of their own: ``carfollowing/60`` ...):
+    ``episodes``, ``mean_score``, ``share_qualified``, ``collisions`` and ``failed`` -- for each
+    score item (``safety``, ``car_following``, ``road_edge``, ``boundary_line``), the number of
+    episodes in which it was applicable and unqualified (a collision fails ``safety``). What a
+    user looks at first when a policy does not qualify: which scenarios, and which requirement
+    (``acc-gym evaluate`` prints it). Reports in
+    :meth:`~acc_gym.evaluation.scoring.ScoreReport.to_dict` form, in episode order; ids in
+    their order of first appearance."""
+    if len(reports) != len(scenarios):
+        raise ValueError(f"{len(reports)} reports for {len(scenarios)} scenario ids")
+    groups: dict[str, list[dict]] = {}
+    for report, sid in zip(reports, scenarios):
+        groups.setdefault(sid, []).append(report)
+    out = {}
+    for sid, group in groups.items():
+        failed: dict[str, int] = {}
+        for r in group:
+            for name, item in r["items"].items():
+                failed.setdefault(name, 0)
+                if item["applicable"] and not item["qualified"]:
+                    failed[name] += 1
+        out[sid] = {"episodes": len(group),
+                    "mean_score": float(np.mean([r["score"] for r in group])),
+                    "share_qualified": float(np.mean([r["qualified"] for r in group])),
+                    "collisions": int(sum(bool(r["metrics"]["collision"]) for r in group)),
+                    "failed": failed}
     return out
 
 
