@@ -58,6 +58,19 @@ def test_the_breakdown_adds_up_to_the_summary_and_names_the_failed_item():
     assert all(g["failed"]["safety"] == g["episodes"] for g in groups.values())
 
 
+class FullThrottle:
+    def predict(self, obs, deterministic=True):
+        return np.ones(1, dtype=np.float32), None
+
+
+def test_a_collision_counts_as_a_failed_safety_item():
+    s = evaluate(FullThrottle(), "acc_gym/CarFollowing-v0", episodes=2, seed=4)
+    assert s["collisions"] == 2
+    for g in s["by_scenario"].values():
+        assert g["collisions"] == g["episodes"] and g["failed"]["safety"] == g["episodes"]
+        assert g["share_qualified"] == 0.0
+
+
 def test_acc_gym_evaluate_prints_the_breakdown(capsys):
     assert main(["evaluate", "acc", "--env", "acc_gym/SingleLane-v1", "--episodes", "4", "--seed", "3"]) == 0
     out = capsys.readouterr().out
