@@ -28,7 +28,7 @@ EPISODES, SEED = 2, 11
 def by_hand(model, normalize=None) -> dict:
     """Drive the model as a user would, episode after episode from one seeded reset; the
     summary ``acc-gym evaluate --json`` prints for it."""
-    from acc_gym.evaluation.runner import preventability, summarise
+    from acc_gym.evaluation.runner import by_scenario, preventability, summarise
 
     env = gym.make(ENV)
     reports, ids, collided = [], [], []
@@ -48,6 +48,7 @@ def by_hand(model, normalize=None) -> dict:
             collided.append(env.unwrapped.scenario)
     out = summarise(reports, ids)
     out.update(preventability(collided, ENV))
+    out["by_scenario"] = by_scenario(reports, ids)
     return json.loads(json.dumps(out))
 
 
