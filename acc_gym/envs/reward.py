@@ -215,12 +215,15 @@ class MarginReward:
                     to 9 m/s^2) exceeds ``a_resp``: braking weaker than the deceleration
                     that stops the closing in the gap left, graded from ``a_req`` (nothing)
                     to ``a_resp`` (all of it, where ``response`` takes over)
+    release         ``-w (min(max(jerk, 0), 30 m/s^3) / 10 m/s^3)^2`` while ``Q < 0``: the      0.0
+                    acceleration rising (the brake let go, or accelerating) inside
+                    Gapsafe, on top of ``jerk``; braking harder costs ``jerk`` alone
     ==============  ====================================================================  ==========
 
     The comfort and jerk terms count ``|a|`` up to 9 m/s^2 and the jerk up to 30 m/s^3, and
     the speed term's slope stops at ``e = 5`` (a parked ego), so a step costs at most
     :attr:`max_step_cost` (5.58 with the defaults; ``overspeed`` adds ``5 w``, ``reach``, ``behind``,
-    ``standstill`` and ``demand`` ``w``).
+    ``standstill`` and ``demand`` ``w``, ``release`` ``9 w``).
 
     Why these changes to :class:`CriteriaReward`:
 
@@ -243,7 +246,7 @@ class MarginReward:
       followable vehicle (an ACC drives at its set speed until it closes in), and the lag
       term grows without a plateau.
 
-    Five terms are off in the ``-v1`` ids' own reward (weight 0, so the ids' rewards are as
+    Six terms are off in the ``-v1`` ids' own reward (weight 0, so the ids' rewards are as
     released in 0.8.0); the shipped PPO training settings turn ``reach`` on (acc-gym 0.11.0,
     ``agents/rl/hyperparams/ppo.yml``: ``env_kwargs: {reward_fn: {reach: 0.5}}``; an env's
     ``reward_fn=`` takes the weights as a mapping):
@@ -295,6 +298,15 @@ class MarginReward:
       on a validation seed and none collided in single-lane traffic, but one seed collided
       in three emergency stops, braking too little without releasing. Not in the shipped
       settings.
+    * **release** (acc-gym 0.20.0) charges the half of the jerk that lets go of the brake
+      while ``Q < 0``. With ``jerk`` 0.02 the deterministic PPO policies of candidate K
+      alternated step by step between hard braking and letting go in the lead's final
+      stop (the release sample a proper-response violation); ``jerk`` 0.1 on both signs
+      removed that but slowed the onset of hard braking (collisions in emergency stops;
+      docs/rl-training.md). ``release`` 0.08 on top of ``jerk`` 0.02 charges a release
+      inside Gapsafe what ``jerk`` 0.1 did and braking harder what 0.02 did. The score's
+      optimum is not moved: inside Gapsafe the score asks for braking at 2 m/s^2 or more,
+      and a smooth release meets it.
     """
 
     band: float = 1.0
@@ -312,6 +324,7 @@ class MarginReward:
     behind: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.13.0, not shipped
     standstill: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.14.0, not shipped
     demand: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.17.0, not shipped
+    release: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.20.0
     standstill_gap: float = 3.0  # [m] the standstill term charges a stop (at the proper response) closer than this
     peak: float = 0.5  # [-] u_t where the efficiency tent is highest (0: the safety boundary, 1: the band's far edge)
     slope: float = 0.25  # [-] the speed term's slope beyond 20 % off the set speed, per 20 %
@@ -319,7 +332,7 @@ class MarginReward:
     jerk_scale: float = 10.0  # [m/s^3]
 
     TERMS = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "overspeed",
-             "reach", "behind", "standstill", "demand")
+             "reach", "behind", "standstill", "demand", "release")
 
     def __post_init__(self) -> None:
         _check_weights(self, ("response_decel", "jerk_scale", "overspeed_scale", "standstill_gap"))
@@ -343,7 +356,8 @@ class MarginReward:
         """The most the terms other than the collision can charge in one step (a_comfort 3 m/s^2)."""
         return (self.speed * self.slope * (self.E_COUNTED - 1.0) + self.response + self.comfort * (self.A_COUNTED / 3.0) ** 2
                 + self.jerk * (self.JERK_COUNTED / self.jerk_scale) ** 2 + self.safety + self.lag
-                + self.overspeed * self.E_COUNTED + self.reach + self.behind + self.standstill + self.demand)
+                + self.overspeed * self.E_COUNTED + self.reach + self.behind + self.standstill + self.demand
+                + self.release * (self.JERK_COUNTED / self.jerk_scale) ** 2)
 
     def from_criteria(self, fl: np.ndarray, bo: np.ndarray, set_speed: np.ndarray, tau1: np.ndarray,
                       steps: np.ndarray, k: np.ndarray, a_comfort: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -419,6 +433,9 @@ class MarginReward:
             "behind": -self.behind * behind.astype(float),
             "standstill": -self.standstill * stand,
             "demand": -self.demand * demand,
+            # the acceleration rising inside Gapsafe (kernel: the same operations)
+            "release": -self.release * np.where(q < 0, (np.minimum(np.maximum(np.asarray(s.jerk, dtype=float), 0.0),
+                                                                   self.JERK_COUNTED) / self.jerk_scale) ** 2, 0.0),
         }
         terms = {k: np.asarray(val, dtype=float) for k, val in terms.items()}
         return sum(terms.values()), terms

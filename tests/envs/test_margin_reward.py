@@ -188,8 +188,36 @@ def test_the_demand_term_equals_hand_computations():
         MarginReward(demand=-1.0)
 
 
+def test_the_release_term_equals_hand_computations():
+    """Off by default; with a weight, while Q < 0 a rising acceleration (positive jerk: the
+    brake let go, or accelerating) costs w (jerk / 10)^2, jerk counted up to 30 m/s^3, on top
+    of the jerk term; braking harder (negative jerk) and any jerk with Q >= 0 cost nothing more."""
+    fn = MarginReward(release=0.08)
+    inside = dict(v=20.0, gap=28.0, v_lead=20.0)  # Gapsafe 30 m: Q = -2 m
+    assert state(**inside).q[0] < 0
+    assert reward(state(**inside, jerk=20.0))[1]["release"] == 0.0  # default: off
+    for jerk, charged in ((20.0, 0.08 * 4.0), (5.0, 0.08 * 0.25), (45.0, 0.08 * 9.0), (0.0, 0.0), (-40.0, 0.0)):
+        assert reward(state(**inside, jerk=jerk), fn)[1]["release"] == pytest.approx(-charged), jerk
+    # the same jerks with Q > 0 (Q = 3 m) or nothing ahead: nothing
+    for where in (dict(v=20.0, gap=33.0, v_lead=20.0), dict(v=20.0)):
+        assert reward(state(**where, jerk=20.0), fn)[1]["release"] == 0.0
+    # candidate K's oscillation (docs/rl-training.md): from -7 to -1 m/s^2 in a 0.1 s step (jerk +60, counted 30)
+    # inside Gapsafe costs 0.02 * 9 = 0.18 with jerk 0.02 alone and 0.9 with release 0.08 on top -- what jerk 0.1
+    # charged; braking from -1 to -7 (jerk -60) costs 0.18 with either, against jerk 0.1's 0.9
+    with_term, m = MarginReward(reach=0.5, demand=1.0, release=0.08), MarginReward(reach=0.5, demand=1.0, jerk=0.1)
+    let_go, onset = state(**inside, a=-1.0, jerk=60.0), state(**inside, a=-7.0, jerk=-60.0)
+    for s in (let_go, onset):
+        assert reward(s, SHIPPED)[1]["jerk"] == pytest.approx(-0.18)
+    assert sum(reward(let_go, with_term)[1][k] for k in ("jerk", "release")) == pytest.approx(
+        reward(let_go, m)[1]["jerk"]) == pytest.approx(-0.9)
+    assert sum(reward(onset, with_term)[1][k] for k in ("jerk", "release")) == pytest.approx(-0.18)
+    assert fn.max_step_cost == pytest.approx(MarginReward().max_step_cost + 0.08 * 9.0)
+    with pytest.raises(ValueError, match="release"):
+        MarginReward(release=-1.0)
+
+
 @pytest.mark.parametrize("fn", [MarginReward(), SHIPPED, MarginReward(overspeed=1.0, reach=0.5, behind=1.0,
-                                                                      standstill=1.0, demand=1.0)],
+                                                                      standstill=1.0, demand=1.0, release=0.5)],
                          ids=["default", "shipped", "every term"])
 def test_no_step_costs_more_than_max_step_cost(fn):
     rng = np.random.default_rng(0)

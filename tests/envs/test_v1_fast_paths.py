@@ -37,7 +37,8 @@ def same_bits(a, b) -> bool:
 @pytest.mark.parametrize("reward", [MarginReward(), MarginReward(band=2.0, lag=1.5, peak=0.2, slope=0.5, jerk_scale=4.0,
                                                                  response_decel=3.0, collision=50.0, overspeed=1.5,
                                                                  overspeed_scale=0.05, reach=0.7, behind=0.9,
-                                                                 standstill=0.8, standstill_gap=4.0, demand=0.6)],
+                                                                 standstill=0.8, standstill_gap=4.0, demand=0.6,
+                                                                 release=0.3)],
                          ids=["default", "weights"])
 def test_margin_reward_from_criteria_rows_equals_the_numpy_reference(reward):
     rng = np.random.default_rng(1)
@@ -62,6 +63,10 @@ def test_margin_reward_from_criteria_rows_equals_the_numpy_reference(reward):
     if reward.demand:  # closing faster than the proper response covers: charged in full, in part, and not at all
         d = terms_slow["demand"]
         assert (d == -reward.demand).any() and ((d < 0) & (d > -reward.demand)).any() and (d == 0).any()
+    if reward.release:  # a rising acceleration inside Gapsafe: counted in full (30 m/s^3), in part, and not at all
+        rl = terms_slow["release"]
+        full = -reward.release * (MarginReward.JERK_COUNTED / reward.jerk_scale) ** 2
+        assert (rl == full).any() and ((rl < 0) & (rl > full)).any() and (rl == 0).any()
 
 
 def test_features32_equals_the_float64_chain():
