@@ -306,7 +306,10 @@ class MarginReward:
       docs/rl-training.md). ``release`` 0.08 on top of ``jerk`` 0.02 charges a release
       inside Gapsafe what ``jerk`` 0.1 did and braking harder what 0.02 did. The score's
       optimum is not moved: inside Gapsafe the score asks for braking at 2 m/s^2 or more,
-      and a smooth release meets it.
+      and a smooth release meets it. With it (PPO, five seeds, candidate O) the oscillation
+      went and the median seed qualified in 96 % of car-following episodes, but two seeds
+      collided in car-following braking events (easing off as the lead stopped). Not in the
+      shipped settings.
     """
 
     band: float = 1.0
@@ -324,7 +327,7 @@ class MarginReward:
     behind: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.13.0, not shipped
     standstill: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.14.0, not shipped
     demand: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.17.0, not shipped
-    release: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.20.0
+    release: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.20.0, not shipped
     standstill_gap: float = 3.0  # [m] the standstill term charges a stop (at the proper response) closer than this
     peak: float = 0.5  # [-] u_t where the efficiency tent is highest (0: the safety boundary, 1: the band's far edge)
     slope: float = 0.25  # [-] the speed term's slope beyond 20 % off the set speed, per 20 %
