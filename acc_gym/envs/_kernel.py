@@ -281,12 +281,12 @@ def finish(active, reward, bo, k, steps, terminate_on_violation, episode_return,
 REACH_BAND = 0.2  # [-] MarginReward's reach term: the score's band, 0 < Q < 0.2 Gapsafe (ScoringConfig.band_width)
 # the terms of margin_reward_rows() (MarginReward.TERMS), in info["rewards"] order
 MARGIN_TERMS = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "overspeed",
-                "reach", "behind", "standstill", "demand", "release")
+                "reach", "behind", "standstill", "demand", "release", "let_go")
 # margin_reward_rows()'s weights and constants, in the order MarginReward._w holds them
 MARGIN_W = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "peak",
             "slope", "response_decel", "jerk_scale", "max_step_cost", "A_COUNTED", "JERK_COUNTED", "E_COUNTED",
             "overspeed", "overspeed_scale", "reach", "behind", "standstill", "standstill_gap", "STOPPED", "demand",
-            "release")
+            "release", "let_go")
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -303,9 +303,9 @@ def margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, r
     """
     (band_w, eff_w, speed_w, resp_w, comfort_w, jerk_w, safety_w, coll_w, lag_w, peak, slope, resp_decel,
      jerk_scale, max_cost, a_counted, jerk_counted, e_counted, over_w, over_scale, reach_w, behind_w, stand_w, stand_gap,
-     stopped, demand_w, release_w) = (
+     stopped, demand_w, release_w, let_go_w) = (
         w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12], w[13], w[14], w[15], w[16],
-        w[17], w[18], w[19], w[20], w[21], w[22], w[23], w[24], w[25])
+        w[17], w[18], w[19], w[20], w[21], w[22], w[23], w[24], w[25], w[26])
     width = max(peak, 1.0 - peak)
     n = fl.shape[1]
     for i in range(n):
@@ -362,6 +362,10 @@ def margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, r
         if fl[F_Q, i] < 0.0:  # the acceleration rising (the brake let go, or accelerating) inside Gapsafe
             release = (min(max(fl[F_JERK, i], 0.0), jerk_counted) / jerk_scale) ** 2
         terms[14, i] = -release_w * release
+        let_go = 0.0  # the same rise, where it ends weaker than the proper response
+        if fl[F_Q, i] < 0.0 and a > -resp_decel:
+            let_go = (min(max(fl[F_JERK, i], 0.0), jerk_counted) / jerk_scale) ** 2
+        terms[15, i] = -let_go_w * let_go
         total = 0.0
         for j in range(terms.shape[0]):
             total += terms[j, i]

@@ -218,12 +218,15 @@ class MarginReward:
     release         ``-w (min(max(jerk, 0), 30 m/s^3) / 10 m/s^3)^2`` while ``Q < 0``: the      0.0
                     acceleration rising (the brake let go, or accelerating) inside
                     Gapsafe, on top of ``jerk``; braking harder costs ``jerk`` alone
+    let_go          as ``release``, where the acceleration after the step is above           0.0
+                    ``-a_resp``: only a release that ends weaker than the proper response
+                    (the samples the score counts as improper responses)
     ==============  ====================================================================  ==========
 
     The comfort and jerk terms count ``|a|`` up to 9 m/s^2 and the jerk up to 30 m/s^3, and
     the speed term's slope stops at ``e = 5`` (a parked ego), so a step costs at most
     :attr:`max_step_cost` (5.58 with the defaults; ``overspeed`` adds ``5 w``, ``reach``, ``behind``,
-    ``standstill`` and ``demand`` ``w``, ``release`` ``9 w``).
+    ``standstill`` and ``demand`` ``w``, ``release`` and ``let_go`` ``9 w``).
 
     Why these changes to :class:`CriteriaReward`:
 
@@ -246,7 +249,7 @@ class MarginReward:
       followable vehicle (an ACC drives at its set speed until it closes in), and the lag
       term grows without a plateau.
 
-    Six terms are off in the ``-v1`` ids' own reward (weight 0, so the ids' rewards are as
+    Seven terms are off in the ``-v1`` ids' own reward (weight 0, so the ids' rewards are as
     released in 0.8.0); the shipped PPO training settings turn ``reach`` on (acc-gym 0.11.0,
     ``agents/rl/hyperparams/ppo.yml``: ``env_kwargs: {reward_fn: {reach: 0.5}}``; an env's
     ``reward_fn=`` takes the weights as a mapping):
@@ -310,6 +313,12 @@ class MarginReward:
       went and the median seed qualified in 96 % of car-following episodes, but two seeds
       collided in car-following braking events (easing off as the lead stopped). Not in the
       shipped settings.
+    * **let_go** (acc-gym 0.20.0) is ``release`` restricted to a release that ends weaker
+      than the proper response (``a > -a_resp``), which the score already counts as an
+      improper response. Candidate O's policies, charged for every release inside
+      Gapsafe, also braked less hard in emergency stops (a hard brake must be eased later);
+      easing from a hard brake to 2 m/s^2 or more costs only ``jerk`` here. Candidate P
+      (docs/rl-training.md).
     """
 
     band: float = 1.0
@@ -328,6 +337,7 @@ class MarginReward:
     standstill: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.14.0, not shipped
     demand: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.17.0, not shipped
     release: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.20.0, not shipped
+    let_go: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); candidate P (0.20.0)
     standstill_gap: float = 3.0  # [m] the standstill term charges a stop (at the proper response) closer than this
     peak: float = 0.5  # [-] u_t where the efficiency tent is highest (0: the safety boundary, 1: the band's far edge)
     slope: float = 0.25  # [-] the speed term's slope beyond 20 % off the set speed, per 20 %
@@ -335,7 +345,7 @@ class MarginReward:
     jerk_scale: float = 10.0  # [m/s^3]
 
     TERMS = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "overspeed",
-             "reach", "behind", "standstill", "demand", "release")
+             "reach", "behind", "standstill", "demand", "release", "let_go")
 
     def __post_init__(self) -> None:
         _check_weights(self, ("response_decel", "jerk_scale", "overspeed_scale", "standstill_gap"))
@@ -360,7 +370,7 @@ class MarginReward:
         return (self.speed * self.slope * (self.E_COUNTED - 1.0) + self.response + self.comfort * (self.A_COUNTED / 3.0) ** 2
                 + self.jerk * (self.JERK_COUNTED / self.jerk_scale) ** 2 + self.safety + self.lag
                 + self.overspeed * self.E_COUNTED + self.reach + self.behind + self.standstill + self.demand
-                + self.release * (self.JERK_COUNTED / self.jerk_scale) ** 2)
+                + (self.release + self.let_go) * (self.JERK_COUNTED / self.jerk_scale) ** 2)
 
     def from_criteria(self, fl: np.ndarray, bo: np.ndarray, set_speed: np.ndarray, tau1: np.ndarray,
                       steps: np.ndarray, k: np.ndarray, a_comfort: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -417,6 +427,8 @@ class MarginReward:
             demanding = closing & (a_req > self.response_decel)
             demand = np.where(demanding, np.clip((a + a_req)
                                                  / (a_req - self.response_decel), 0.0, 1.0), 0.0)
+        # [-] the acceleration's rise this step, counted up to JERK_COUNTED, squared in jerk_scale units (release, let_go)
+        rise = (np.minimum(np.maximum(np.asarray(s.jerk, dtype=float), 0.0), self.JERK_COUNTED) / self.jerk_scale) ** 2
         steps_left = 0.0 if s.steps_left is None else np.maximum(np.asarray(s.steps_left, dtype=float), 0.0)
         terms = {
             "band": self.band * (following & np.asarray(s.in_band, dtype=bool)),
@@ -437,8 +449,9 @@ class MarginReward:
             "standstill": -self.standstill * stand,
             "demand": -self.demand * demand,
             # the acceleration rising inside Gapsafe (kernel: the same operations)
-            "release": -self.release * np.where(q < 0, (np.minimum(np.maximum(np.asarray(s.jerk, dtype=float), 0.0),
-                                                                   self.JERK_COUNTED) / self.jerk_scale) ** 2, 0.0),
+            "release": -self.release * np.where(q < 0, rise, 0.0),
+            # ... where it ends weaker than the proper response
+            "let_go": -self.let_go * np.where((q < 0) & (a > -self.response_decel), rise, 0.0),
         }
         terms = {k: np.asarray(val, dtype=float) for k, val in terms.items()}
         return sum(terms.values()), terms

@@ -216,8 +216,33 @@ def test_the_release_term_equals_hand_computations():
         MarginReward(release=-1.0)
 
 
+def test_the_let_go_term_charges_only_a_release_past_the_proper_response():
+    """Off by default; with a weight, as the release term, but only where the acceleration
+    after the step is above -2 m/s^2 (weaker than the proper response)."""
+    fn = MarginReward(let_go=0.08)
+    inside = dict(v=20.0, gap=28.0, v_lead=20.0)  # Gapsafe 30 m: Q = -2 m
+    assert reward(state(**inside, a=-1.0, jerk=60.0))[1]["let_go"] == 0.0  # default: off
+    # candidate K's oscillation: released from -7 to -1.5 / +0.4 m/s^2 (jerk 55 / 74, counted 30): 0.08 * 9
+    for a in (-1.5, 0.4):
+        assert reward(state(**inside, a=a, jerk=(a + 7.0) / 0.1), fn)[1]["let_go"] == pytest.approx(-0.72), a
+    # easing from -7 to -3 or to exactly -2 m/s^2 (still a proper response): nothing; from -2.5 to -1.9 (jerk 6): 0.08 * 0.36
+    assert reward(state(**inside, a=-3.0, jerk=40.0), fn)[1]["let_go"] == 0.0
+    assert reward(state(**inside, a=-2.0, jerk=50.0), fn)[1]["let_go"] == 0.0
+    assert reward(state(**inside, a=-1.9, jerk=6.0), fn)[1]["let_go"] == pytest.approx(-0.08 * 0.36)
+    # braking harder, or Q > 0: nothing
+    assert reward(state(**inside, a=-1.0, jerk=-10.0), fn)[1]["let_go"] == 0.0
+    assert reward(state(20.0, 33.0, 20.0, a=0.0, jerk=20.0), fn)[1]["let_go"] == 0.0
+    # where it charges, it charges what release does
+    s = state(**inside, a=-0.5, jerk=12.0)
+    assert reward(s, fn)[1]["let_go"] == reward(s, MarginReward(release=0.08))[1]["release"] == pytest.approx(-0.08 * 1.44)
+    assert fn.max_step_cost == pytest.approx(MarginReward().max_step_cost + 0.08 * 9.0)
+    with pytest.raises(ValueError, match="let_go"):
+        MarginReward(let_go=-1.0)
+
+
 @pytest.mark.parametrize("fn", [MarginReward(), SHIPPED, MarginReward(overspeed=1.0, reach=0.5, behind=1.0,
-                                                                      standstill=1.0, demand=1.0, release=0.5)],
+                                                                      standstill=1.0, demand=1.0, release=0.5,
+                                                                      let_go=0.5)],
                          ids=["default", "shipped", "every term"])
 def test_no_step_costs_more_than_max_step_cost(fn):
     rng = np.random.default_rng(0)

@@ -38,7 +38,7 @@ def same_bits(a, b) -> bool:
                                                                  response_decel=3.0, collision=50.0, overspeed=1.5,
                                                                  overspeed_scale=0.05, reach=0.7, behind=0.9,
                                                                  standstill=0.8, standstill_gap=4.0, demand=0.6,
-                                                                 release=0.3)],
+                                                                 release=0.3, let_go=0.4)],
                          ids=["default", "weights"])
 def test_margin_reward_from_criteria_rows_equals_the_numpy_reference(reward):
     rng = np.random.default_rng(1)
@@ -67,6 +67,10 @@ def test_margin_reward_from_criteria_rows_equals_the_numpy_reference(reward):
         rl = terms_slow["release"]
         full = -reward.release * (MarginReward.JERK_COUNTED / reward.jerk_scale) ** 2
         assert (rl == full).any() and ((rl < 0) & (rl > full)).any() and (rl == 0).any()
+    if reward.let_go:  # the same, where the acceleration then is above -response_decel: also 0 where release charges
+        lg = terms_slow["let_go"]
+        full = -reward.let_go * (MarginReward.JERK_COUNTED / reward.jerk_scale) ** 2
+        assert (lg == full).any() and ((lg < 0) & (lg > full)).any() and ((lg == 0) & (terms_slow["release"] < 0)).any()
 
 
 def test_features32_equals_the_float64_chain():
