@@ -358,14 +358,12 @@ def margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, r
             if a_req > resp_decel:
                 demand = min(max((a + a_req) / (a_req - resp_decel), 0.0), 1.0)
         terms[13, i] = -demand_w * demand
-        release = 0.0
-        if fl[F_Q, i] < 0.0:  # the acceleration rising (the brake let go, or accelerating) inside Gapsafe
-            release = (min(max(fl[F_JERK, i], 0.0), jerk_counted) / jerk_scale) ** 2
-        terms[14, i] = -release_w * release
-        let_go = 0.0  # the same rise, where it ends weaker than the proper response
-        if fl[F_Q, i] < 0.0 and a > -resp_decel:
-            let_go = (min(max(fl[F_JERK, i], 0.0), jerk_counted) / jerk_scale) ** 2
-        terms[15, i] = -let_go_w * let_go
+        # the acceleration rising (the brake let go, or accelerating) inside Gapsafe; let_go: where it then is
+        # weaker than the proper response
+        rise = (min(max(fl[F_JERK, i], 0.0), jerk_counted) / jerk_scale) ** 2
+        inside = fl[F_Q, i] < 0.0
+        terms[14, i] = -release_w * (rise if inside else 0.0)
+        terms[15, i] = -let_go_w * (rise if (inside and a > -resp_decel) else 0.0)
         total = 0.0
         for j in range(terms.shape[0]):
             total += terms[j, i]
