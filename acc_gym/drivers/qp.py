@@ -39,7 +39,9 @@ Solving
 -------
 On most steps no constraint is active and the optimum is the unconstrained linear law
 ``u = Z @ theta`` (``s = 0``), exact; the driver kernel checks it against every
-constraint with a few recurrences, batched over drivers. The remaining steps
+constraint with a few recurrences, batched over drivers. Where a constraint binds, the
+kernel's warm active-set solver starts from the working set of the driver's step before
+and accepts its answer only where the KKT conditions hold. The remaining steps
 go to an exact QP backend kept warm between steps: DAQP (a dual active-set solver,
 default), ProxQP from proxsuite, or any qpsolvers backend (no workspace; for
 cross-checks). Backends never raise: a failure is returned as ``ok=False`` and the
