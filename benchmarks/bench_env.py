@@ -56,6 +56,13 @@ repeat; ``column_vehicle_steps_per_s`` and ``cavsandbox_column_vehicle_steps_per
 vehicles x steps per second, and ``column_ratio_cavsandbox`` = ours / theirs. Without
 cavsandbox the ratio is ``null`` and ``column_ratio_cavsandbox_reason`` says why.
 
+``--split`` also times each vector case once more per repeat with the time spent starting
+episodes counted apart (the vector env's autoresets: drawing the scenarios, building the
+scenes, installing their drivers), and reports ``vector_<case>_reset_share`` (that time over
+the run's) and ``vector_<case>_steps_per_s_without_resets`` (the steps over the rest of the
+time: what the case would run at if starting an episode were free, the ceiling of any work
+on resets), medians over the repeats (:func:`vector_env_split`).
+
 ``--against DIR`` times another checkout of the package (e.g. the previous release:
 ``git worktree add /tmp/prev v0.5.0``) in the same run: each repeat runs this script once
 for this checkout and once for ``DIR`` (``PYTHONPATH=DIR``), alternating, in subprocesses,
@@ -143,6 +150,39 @@ def vector_env_rate(num_envs: int, steps: int, seed: int, parallel: bool = False
     rate = num_envs * steps / (time.perf_counter() - t0)
     envs.close()
     return rate
+
+
+def vector_env_split(num_envs: int, steps: int, seed: int, env_id: str = "acc_gym/SingleLane-v0",
+                     **settings) -> dict:
+    """The vector env of :func:`vector_env_rate` (one process) with the time its autoresets take
+    counted apart: ``{"steps_per_s", "reset_share", "steps_per_s_without_resets", "resets"}``.
+    The env's own ``_reset_rows`` (what an autoreset runs: draw, build, install) is wrapped in
+    a timer on this instance only; the initial ``reset`` is outside the timed run."""
+    envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **settings)
+    inner = envs.unwrapped
+    timed = inner._reset_rows
+    spent = [0.0, 0]  # [s], calls' rows
+
+    def counted(rows, *args, **kwargs):
+        t = time.perf_counter()
+        try:
+            return timed(rows, *args, **kwargs)
+        finally:
+            spent[0] += time.perf_counter() - t
+            spent[1] += len(rows)
+
+    inner._reset_rows = counted
+    rng = np.random.default_rng(seed)
+    envs.reset(seed=seed)
+    spent[:] = [0.0, 0]
+    actions = rng.uniform(-0.3, 0.3, (steps, num_envs, 1)).astype(np.float32)
+    t0 = time.perf_counter()
+    for k in range(steps):
+        envs.step(actions[k])
+    total = time.perf_counter() - t0
+    envs.close()
+    return {"steps_per_s": num_envs * steps / total, "reset_share": spent[0] / total,
+            "steps_per_s_without_resets": num_envs * steps / (total - spent[0]), "resets": spent[1]}
 
 
 def vector_policy_rate(num_envs: int, steps: int, seed: int, workers: int = 1) -> float:
@@ -248,7 +288,7 @@ def cavsandbox_column_rate() -> float:
 
 def _median(out: dict, key: str, runs: list) -> None:
     out[key] = float(np.median(runs))
-    out[key + "_runs"] = [round(x) for x in runs]
+    out[key + "_runs"] = [round(x, 3) if key.endswith("_share") else round(x) for x in runs]
 
 
 def paired_ratio(this_runs: list, other_runs: list) -> float:
@@ -300,6 +340,8 @@ def main(argv=None) -> dict:
                              "alternating, and report sumo_ratio and column_ratio_cavsandbox")
     parser.add_argument("--against", default=None, metavar="DIR",
                         help="also time the checkout in DIR (PYTHONPATH=DIR), alternating, and report the ratios")
+    parser.add_argument("--split", action="store_true",
+                        help="also report each vector case's share of time in autoresets and its rate without them")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     if args.against:
@@ -337,6 +379,10 @@ def main(argv=None) -> dict:
             runs.setdefault(f"{case}_steps_per_s", []).append(single_env_rate(args.steps, r, env_id, **settings))
             runs.setdefault(f"vector_{case}_steps_per_s", []).append(
                 vector_env_rate(args.num_envs, args.vector_steps, r, env_id=env_id, **settings))
+            if args.split:
+                split = vector_env_split(args.num_envs, args.vector_steps, r, env_id=env_id, **settings)
+                for name in ("reset_share", "steps_per_s_without_resets"):
+                    runs.setdefault(f"vector_{case}_{name}", []).append(split[name])
             if args.peers and case == "env_idm":
                 runs.setdefault("sumo_steps_per_s", []).append(sumo_peer.rate(args.steps))
         if args.peers:  # the column case, then cavsandbox on the same work
@@ -376,9 +422,11 @@ def main(argv=None) -> dict:
         print(json.dumps(out))
     else:
         for key, value in out.items():
-            if key.endswith("_steps_per_s"):
+            if key.endswith(("_steps_per_s", "_without_resets")):
                 unit = "vehicle-steps/s" if "vehicle_steps" in key else "steps/s"
                 print(f"{key:42s} {value:>12,.0f} {unit}  (runs {out[key + '_runs']})")
+            elif key.endswith("_reset_share"):
+                print(f"{key:42s} {value:>12.2f}  (runs {out[key + '_runs']})")
         if "sumo_ratio" in out:
             print(f"acc_gym (IDM drivers) / SUMO (libsumo): {out['sumo_ratio']:.2f}x "
                   f"(SingleLane-v1: {out['sumo_ratio_v1']:.2f}x)")

@@ -115,6 +115,34 @@ def test_paired_ratio_is_the_median_of_each_repeats_ratio():
         bench_env.paired_ratio([1, 2], [1])
 
 
+def test_bench_env_split_counts_every_autoreset_and_only_them():
+    """``--split``'s accounting: the rows it times restarting are exactly the episodes that ended
+    before the run's last step (an episode ending at step k restarts at step k + 1), counted here
+    on a second env driven with the same seed and actions; their time is part of the run's, so
+    the rate without them is higher."""
+    import gymnasium as gym
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import bench_env
+
+    num_envs, steps = 8, 150
+    split = bench_env.vector_env_split(num_envs, steps, 3, env_id="acc_gym/SingleLane-v1")
+    envs = gym.make_vec("acc_gym/SingleLane-v1", num_envs=num_envs, vectorization_mode="vector_entry_point")
+    envs.reset(seed=3)
+    actions = np.random.default_rng(3).uniform(-0.3, 0.3, (steps, num_envs, 1)).astype(np.float32)
+    ended = 0
+    for k in range(steps - 1):
+        _, _, term, trunc, _ = envs.step(actions[k])
+        ended += int(np.sum(term | trunc))
+    envs.close()
+    assert ended > 0  # single-lane episodes last 6-40 s (median 12): some of 8 end within 15 s
+    assert split["resets"] == ended
+    assert 0.0 < split["reset_share"] < 1.0
+    assert split["steps_per_s_without_resets"] > split["steps_per_s"]
+    assert split["steps_per_s"] == pytest.approx(split["steps_per_s_without_resets"] * (1.0 - split["reset_share"]))
+
+
 def test_bench_leaderboard_json_keys():
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_leaderboard.py"), "--json", "--repeats", "1",
                         "--rows", "4", "--round-trips", "20", "--leaderboard-args",
