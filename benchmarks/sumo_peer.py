@@ -17,7 +17,9 @@ importable. libsumo runs one simulation per process, so this module keeps one.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
 import tempfile
 import time
 
@@ -51,9 +53,18 @@ _ROUTES = """<routes>
 _state: dict = {}
 
 
+def _libsumo():
+    """libsumo, imported with its import-time notices (e.g. "Warning! pyarrow is installed with
+    version ..." when pyarrow's version differs from the one SUMO was built against) sent to
+    stderr: ``bench_env.py --json`` prints one JSON document on stdout and nothing else."""
+    with contextlib.redirect_stdout(sys.stderr):
+        import libsumo
+    return libsumo
+
+
 def available() -> bool:
     try:
-        import libsumo  # noqa: F401
+        _libsumo()
     except ImportError:
         return False
     return True
@@ -61,8 +72,7 @@ def available() -> bool:
 
 def _sim():
     if "traci" not in _state:
-        import libsumo
-
+        libsumo = _libsumo()
         folder = tempfile.mkdtemp(prefix="acc_gym_sumo_")
         for name, text in (("road.net.xml", _NET), ("road.rou.xml", _ROUTES)):
             with open(os.path.join(folder, name), "w") as fh:
