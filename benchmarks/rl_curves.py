@@ -22,7 +22,8 @@ run's own (the ``-v1`` ids): the run's checkpoints scored on that id's own scena
 (:func:`twin_curve`), so the same policy is not trained twice.
 
 ``--plot-only`` redraws the PNG from the JSON; ``--table`` prints its runs as Markdown (every
-seed's held-out results, then the median and min-max over seeds). Runs whose directory already holds a
+seed's held-out results, then the median and min-max over seeds); ``--candidates`` prints the
+search's candidates that were validated seed by seed (:func:`candidates`). Runs whose directory already holds a
 finished ``manifest.json`` are read, not retrained (``--retrain`` forces it).
 """
 
@@ -151,6 +152,45 @@ def table(data: dict) -> str:
     return "\n".join(rows)
 
 
+def _seed_result(r: dict) -> tuple[float, float, int, bool]:
+    """(CarFollowing-v1 share, SingleLane-v1 share, collisions on both, meets) of one seed's
+    validation in a ``selection_*`` entry, whichever of the three forms the search recorded it in."""
+    if "carfollowing_v1" in r:  # 0.20.0 on
+        return (r["carfollowing_v1"], r["singlelane_v1"],
+                r["collisions_carfollowing_v1"] + r["collisions_singlelane_v1"], bool(r["meets"]))
+    if "CarFollowing-v1" in r:  # [share, score, collisions]
+        cf, sl = r["CarFollowing-v1"], r["SingleLane-v1"]
+        return cf[0], sl[0], cf[2] + sl[2], bool(r["meets"])
+    cf, sl = r["acc_gym/CarFollowing-v1"], r["acc_gym/SingleLane-v1"]
+    return cf["share_qualified"], sl["share_qualified"], cf["collisions"] + sl["collisions"], bool(r["meets"])
+
+
+def candidates(data: dict) -> str:
+    """Markdown: every candidate of the search validated seed by seed (each ``selection_*``
+    entry with a ``per_seed`` record, in the JSON's order): its fresh validation seed, the seeds
+    that meet issue 33's per-seed test, the median and the lowest seed's share qualified on each
+    id, and the collisions in all its validation episodes. Rules and traces: the entries
+    themselves and docs/rl-training.md."""
+    import statistics
+
+    rows = ["| selection entry | validation seed | seeds meeting | CarFollowing-v1: median (lowest) | "
+            "SingleLane-v1: median (lowest) | collisions |", "|---|---:|---|---|---|---:|"]
+    for key, entry in data.items():
+        per_seed = entry.get("per_seed") if key.startswith("selection_") and isinstance(entry, dict) else None
+        if not isinstance(per_seed, dict) or not per_seed:
+            continue
+        results = {seed: _seed_result(r) for seed, r in per_seed.items()}
+        cf = [r[0] for r in results.values()]
+        sl = [r[1] for r in results.values()]
+        meeting = [seed for seed, r in results.items() if r[3]]
+        rows.append(f"| `{key}` | {entry.get('validation_seed', '')} | {len(meeting)} of {len(results)}"
+                    f"{' (' + ', '.join(meeting) + ')' if meeting else ''} | "
+                    f"{100 * statistics.median(cf):.0f} % ({100 * min(cf):.0f} %) | "
+                    f"{100 * statistics.median(sl):.0f} % ({100 * min(sl):.0f} %) | "
+                    f"{sum(r[2] for r in results.values())} |")
+    return "\n".join(rows)
+
+
 def _curve_job(kwargs: dict) -> dict:
     return curve(**kwargs)
 
@@ -218,6 +258,8 @@ def main(argv=None) -> int:
     ap.add_argument("--png", default=str(DEFAULT_PNG))
     ap.add_argument("--plot-only", action="store_true")
     ap.add_argument("--table", action="store_true", help="print the JSON's runs as a Markdown table and exit")
+    ap.add_argument("--candidates", action="store_true",
+                    help="print the search's candidates validated seed by seed as a Markdown table and exit")
     ap.add_argument("--retrain", action="store_true")
     ap.add_argument("--merge", action="store_true", help="keep the JSON's other runs (replace the same ones)")
     args = ap.parse_args(argv)
@@ -226,6 +268,9 @@ def main(argv=None) -> int:
         return 0
     if args.table:
         print(table(json.loads(Path(args.json).read_text())))
+        return 0
+    if args.candidates:
+        print(candidates(json.loads(Path(args.json).read_text())))
         return 0
     os.environ.setdefault("OMP_NUM_THREADS", "1")  # inherited by --jobs workers
     from acc_gym._io import atomic_write

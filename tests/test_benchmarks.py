@@ -249,3 +249,37 @@ def test_bench_startup_json_keys():
         assert out[key] > 0 and out[key + "_runs"] == [out[key]]  # one round: the median is that run
     assert out["scipy_integrate_cost_s"] == out["startup_env_scipy_integrate_s"] - out["startup_env_s"]
     assert out["startup_import_s"] < out["startup_env_s"]  # making and stepping an env imports and loads more
+
+
+def test_rl_curves_candidates_reads_every_per_seed_form_and_counts_by_hand():
+    """benchmarks/rl_curves.py --candidates: one row per selection entry validated seed by seed,
+    whichever of the search's three per-seed forms it used; entries without ``per_seed`` and
+    other keys are left out. Counts, medians, minima and collisions as computed by hand."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        import rl_curves
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    data = {
+        "tried": {"per_seed": {"0": {"meets": True}}},  # not a selection entry
+        "selection_rule_only": {"rule": "..."},
+        "selection_new": {"validation_seed": 7, "per_seed": {
+            "0": {"carfollowing_v1": 0.90, "singlelane_v1": 0.80, "collisions_carfollowing_v1": 0,
+                  "collisions_singlelane_v1": 0, "meets": True},
+            "1": {"carfollowing_v1": 0.70, "singlelane_v1": 0.95, "collisions_carfollowing_v1": 1,
+                  "collisions_singlelane_v1": 2, "meets": False},
+            "2": {"carfollowing_v1": 1.00, "singlelane_v1": 0.76, "collisions_carfollowing_v1": 0,
+                  "collisions_singlelane_v1": 0, "meets": True}}},
+        "selection_lists": {"validation_seed": 8, "per_seed": {
+            "0": {"CarFollowing-v1": [0.5, 60.0, 4], "SingleLane-v1": [0.6, 70.0, 0], "meets": False}}},
+        "selection_dicts": {"validation_seed": 9, "per_seed": {
+            "3": {"acc_gym/CarFollowing-v1": {"share_qualified": 0.85, "collisions": 0},
+                  "acc_gym/SingleLane-v1": {"share_qualified": 0.75, "collisions": 0}, "meets": True},
+            "4": {"acc_gym/CarFollowing-v1": {"share_qualified": 0.95, "collisions": 0},
+                  "acc_gym/SingleLane-v1": {"share_qualified": 0.65, "collisions": 1}, "meets": False}}},
+    }
+    lines = rl_curves.candidates(data).splitlines()
+    assert len(lines) == 2 + 3
+    assert lines[2] == "| `selection_new` | 7 | 2 of 3 (0, 2) | 90 % (70 %) | 80 % (76 %) | 3 |"
+    assert lines[3] == "| `selection_lists` | 8 | 0 of 1 | 50 % (50 %) | 60 % (60 %) | 4 |"
+    assert lines[4] == "| `selection_dicts` | 9 | 1 of 2 (3) | 90 % (85 %) | 70 % (65 %) | 1 |"
