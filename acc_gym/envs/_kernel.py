@@ -281,12 +281,12 @@ def finish(active, reward, bo, k, steps, terminate_on_violation, episode_return,
 REACH_BAND = 0.2  # [-] MarginReward's reach term: the score's band, 0 < Q < 0.2 Gapsafe (ScoringConfig.band_width)
 # the terms of margin_reward_rows() (MarginReward.TERMS), in info["rewards"] order
 MARGIN_TERMS = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "overspeed",
-                "reach", "behind", "standstill", "demand", "release", "let_go")
+                "reach", "behind", "standstill", "demand", "release", "let_go", "stop_demand")
 # margin_reward_rows()'s weights and constants, in the order MarginReward._w holds them
 MARGIN_W = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "peak",
             "slope", "response_decel", "jerk_scale", "max_step_cost", "A_COUNTED", "JERK_COUNTED", "E_COUNTED",
             "overspeed", "overspeed_scale", "reach", "behind", "standstill", "standstill_gap", "STOPPED", "demand",
-            "release", "let_go")
+            "release", "let_go", "stop_demand")
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -303,9 +303,9 @@ def margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, r
     """
     (band_w, eff_w, speed_w, resp_w, comfort_w, jerk_w, safety_w, coll_w, lag_w, peak, slope, resp_decel,
      jerk_scale, max_cost, a_counted, jerk_counted, e_counted, over_w, over_scale, reach_w, behind_w, stand_w, stand_gap,
-     stopped, demand_w, release_w, let_go_w) = (
+     stopped, demand_w, release_w, let_go_w, stop_w) = (
         w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12], w[13], w[14], w[15], w[16],
-        w[17], w[18], w[19], w[20], w[21], w[22], w[23], w[24], w[25], w[26])
+        w[17], w[18], w[19], w[20], w[21], w[22], w[23], w[24], w[25], w[26], w[27])
     width = max(peak, 1.0 - peak)
     n = fl.shape[1]
     for i in range(n):
@@ -364,6 +364,14 @@ def margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, r
         inside = fl[F_Q, i] < 0.0
         terms[14, i] = -release_w * (rise if inside else 0.0)
         terms[15, i] = -let_go_w * (rise if (inside and a > -resp_decel) else 0.0)
+        # the deceleration that stops the ego behind a braking vehicle ahead (its own stop counted)
+        stop = 0.0
+        al = fl[F_ALEAD, i]
+        if inside and gap > 0.0 and math.isfinite(gap) and al < 0.0:
+            a_stop = min(v * v / (2.0 * (gap + vl * vl / (2.0 * -al))), a_counted)  # [m/s^2]
+            if a_stop > resp_decel:
+                stop = min(max((a + a_stop) / (a_stop - resp_decel), 0.0), 1.0)
+        terms[16, i] = -stop_w * stop
         total = 0.0
         for j in range(terms.shape[0]):
             total += terms[j, i]

@@ -320,6 +320,9 @@ class ACCEnv(gym.Env):
     * acc-gym 0.20.0 (issue 33), no id changed: ``MarginReward`` has two more terms,
       ``release`` and ``let_go`` (weight 0 in the ``-v1`` ids' reward: its values are as
       before; ``info["rewards"]`` lists them, at 0).
+    * acc-gym 0.20.3 (issue 33), no id changed: ``MarginReward`` has one more term,
+      ``stop_demand`` (weight 0 in the ``-v1`` ids' reward: its values are as before;
+      ``info["rewards"]`` lists it, at 0).
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 5}

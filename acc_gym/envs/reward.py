@@ -67,6 +67,7 @@ class StepIndicators:
     v_lead: np.ndarray | None = None  # [m/s]
     tau1: np.ndarray | None = None  # [s]
     steps_left: np.ndarray | None = None  # steps the scenario still had to run after this one
+    a_lead: np.ndarray | None = None  # [m/s^2] the vehicle ahead's acceleration over the step (0: none)
 
     @classmethod
     def from_rows(cls, fl: np.ndarray, bo: np.ndarray, set_speed: np.ndarray, tau1: np.ndarray,
@@ -80,7 +81,7 @@ class StepIndicators:
                    gap=fl[K.F_GAP], gap_safe=fl[K.F_GS], q=fl[K.F_Q], in_band=bo[K.B_IN_BAND],
                    following=bo[K.B_FOLLOWING], free=bo[K.B_FREE], u=fl[K.F_U], violation=bo[K.B_VIOLATION],
                    collision=bo[K.B_COLLISION], a_comfort=a_comfort, followable=bo[K.B_FOLLOWABLE],
-                   v_lead=fl[K.F_VLEAD], tau1=tau1, steps_left=steps_left)
+                   v_lead=fl[K.F_VLEAD], tau1=tau1, steps_left=steps_left, a_lead=fl[K.F_ALEAD])
 
 
 def _check_weights(reward, positive: tuple[str, ...]) -> None:
@@ -221,12 +222,19 @@ class MarginReward:
     let_go          as ``release``, where the acceleration after the step is above           0.0
                     ``-a_resp``: only a release that ends weaker than the proper response
                     (the samples the score counts as improper responses)
+    stop_demand     as ``demand``, with ``a_stop = v^2 / (2 (gap + v_lead^2 / (2 b)))``      0.0
+                    in place of ``a_req``, while the vehicle ahead brakes at ``b =
+                    -a_lead > 0``: the deceleration that stops the ego in the gap left
+                    after the vehicle ahead's own stop. ``a_req`` assumes the vehicle
+                    ahead holds its speed and reads 0.7-2 m/s^2 in the first seconds of an
+                    emergency stop from 120 km/h met in the band, where stopping behind
+                    it needs about 5 (docs/rl-training.md, candidate V's trace)
     ==============  ====================================================================  ==========
 
     The comfort and jerk terms count ``|a|`` up to 9 m/s^2 and the jerk up to 30 m/s^3, and
     the speed term's slope stops at ``e = 5`` (a parked ego), so a step costs at most
     :attr:`max_step_cost` (5.58 with the defaults; ``overspeed`` adds ``5 w``, ``reach``, ``behind``,
-    ``standstill`` and ``demand`` ``w``, ``release`` and ``let_go`` ``9 w``).
+    ``standstill``, ``demand`` and ``stop_demand`` ``w``, ``release`` and ``let_go`` ``9 w``).
 
     Why these changes to :class:`CriteriaReward`:
 
@@ -338,6 +346,7 @@ class MarginReward:
     demand: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.17.0, not shipped
     release: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.20.0, not shipped
     let_go: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); candidate P (0.20.0)
+    stop_demand: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); added in 0.20.3, not yet tried
     standstill_gap: float = 3.0  # [m] the standstill term charges a stop (at the proper response) closer than this
     peak: float = 0.5  # [-] u_t where the efficiency tent is highest (0: the safety boundary, 1: the band's far edge)
     slope: float = 0.25  # [-] the speed term's slope beyond 20 % off the set speed, per 20 %
@@ -345,7 +354,7 @@ class MarginReward:
     jerk_scale: float = 10.0  # [m/s^3]
 
     TERMS = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "overspeed",
-             "reach", "behind", "standstill", "demand", "release", "let_go")
+             "reach", "behind", "standstill", "demand", "release", "let_go", "stop_demand")
 
     def __post_init__(self) -> None:
         _check_weights(self, ("response_decel", "jerk_scale", "overspeed_scale", "standstill_gap"))
@@ -370,7 +379,7 @@ class MarginReward:
         return (self.speed * self.slope * (self.E_COUNTED - 1.0) + self.response + self.comfort * (self.A_COUNTED / 3.0) ** 2
                 + self.jerk * (self.JERK_COUNTED / self.jerk_scale) ** 2 + self.safety + self.lag
                 + self.overspeed * self.E_COUNTED + self.reach + self.behind + self.standstill + self.demand
-                + (self.release + self.let_go) * (self.JERK_COUNTED / self.jerk_scale) ** 2)
+                + (self.release + self.let_go) * (self.JERK_COUNTED / self.jerk_scale) ** 2 + self.stop_demand)
 
     def from_criteria(self, fl: np.ndarray, bo: np.ndarray, set_speed: np.ndarray, tau1: np.ndarray,
                       steps: np.ndarray, k: np.ndarray, a_comfort: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -393,6 +402,9 @@ class MarginReward:
         if s.followable is None or s.v_lead is None or s.tau1 is None:
             raise ValueError("MarginReward needs the indicators followable, v_lead and tau1 (acc_gym's environments "
                              "give them)")
+        if s.a_lead is None and self.stop_demand:
+            raise ValueError("MarginReward.stop_demand needs the indicator a_lead (acc_gym's environments give it)")
+        a_lead = np.zeros_like(np.asarray(s.v, dtype=float)) if s.a_lead is None else np.asarray(s.a_lead, dtype=float)
         v = np.asarray(s.v, dtype=float)
         following = np.asarray(s.following, dtype=bool)
         followable = np.asarray(s.followable, dtype=bool)
@@ -427,6 +439,12 @@ class MarginReward:
             demanding = closing & (a_req > self.response_decel)
             demand = np.where(demanding, np.clip((a + a_req)
                                                  / (a_req - self.response_decel), 0.0, 1.0), 0.0)
+            # [m/s^2] the deceleration that stops the ego behind a braking vehicle ahead, its own stop counted
+            braking = (q < 0) & (gap > 0) & np.isfinite(gap) & (a_lead < 0)
+            a_stop = np.where(braking, np.minimum(v * v / (2.0 * (gap + v_lead * v_lead / (2.0 * -a_lead))),
+                                                  self.A_COUNTED), 0.0)
+            stopping = braking & (a_stop > self.response_decel)
+            stop = np.where(stopping, np.clip((a + a_stop) / (a_stop - self.response_decel), 0.0, 1.0), 0.0)
         # [-] the acceleration's rise this step, counted up to JERK_COUNTED, squared in jerk_scale units (release, let_go)
         rise = (np.minimum(np.maximum(np.asarray(s.jerk, dtype=float), 0.0), self.JERK_COUNTED) / self.jerk_scale) ** 2
         steps_left = 0.0 if s.steps_left is None else np.maximum(np.asarray(s.steps_left, dtype=float), 0.0)
@@ -452,6 +470,7 @@ class MarginReward:
             "release": -self.release * np.where(q < 0, rise, 0.0),
             # ... where it ends weaker than the proper response
             "let_go": -self.let_go * np.where((q < 0) & (a > -self.response_decel), rise, 0.0),
+            "stop_demand": -self.stop_demand * stop,
         }
         terms = {k: np.asarray(val, dtype=float) for k, val in terms.items()}
         return sum(terms.values()), terms

@@ -337,3 +337,36 @@ def test_returns_rank_the_behaviours_as_their_points_do(env_id, episodes, fn):
 def test_bad_weights_are_named(kw, match):
     with pytest.raises(ValueError, match=match):
         MarginReward(**kw)
+
+
+def test_the_stop_demand_term_counts_the_braking_vehicle_aheads_own_stop():
+    """stop_demand (0.20.3): inside Gapsafe behind a vehicle ahead braking at b, the deceleration
+    that stops the ego in the gap left after that vehicle's own stop, a_stop = v^2 / (2 (gap +
+    v_lead^2 / (2 b))), graded from a_stop (nothing) to the proper response (all), as demand is
+    from paper 001's a_req. The case traced in candidate V's seed 2: 31.4 m/s, 48 m behind a
+    vehicle at 28 m/s braking at 7.7 m/s^2."""
+    def braking(a, a_lead, v=31.4, gap=48.0, v_lead=28.0):
+        s = state(v, gap, v_lead, set_speed=33.3, a=a)
+        return StepIndicators(**{**s.__dict__, "a_lead": np.array([a_lead])})
+
+    fn = MarginReward(stop_demand=1.0)
+    a_stop = 31.4 ** 2 / (2.0 * (48.0 + 28.0 ** 2 / (2.0 * 7.7)))  # 4.98 m/s^2
+    assert a_stop == pytest.approx(4.98, abs=0.01)
+    s = braking(-3.0, -7.7)
+    assert s.q[0] < 0  # inside Gapsafe: Gapsafe = 31.4 * 1.5 + (31.4^2 - 28^2) / (2 * 8) > 48
+    # braking at 3: (a_stop - 3) / (a_stop - 2) of the weight; paper 001's a_req (3.4^2 / 96 = 0.12) asks nothing
+    t = reward(s, fn)[1]
+    assert t["stop_demand"] == pytest.approx(-(a_stop - 3.0) / (a_stop - 2.0))
+    assert reward(s, MarginReward(demand=1.0))[1]["demand"] == 0.0
+    assert reward(braking(-1.0, -7.7), fn)[1]["stop_demand"] == -1.0  # at or below the proper response: all of it
+    assert reward(braking(-5.0, -7.7), fn)[1]["stop_demand"] == 0.0  # braking at least a_stop: nothing
+    assert reward(braking(-3.0, 0.5), fn)[1]["stop_demand"] == 0.0  # the vehicle ahead not braking
+    assert reward(braking(-3.0, -0.5), fn)[1]["stop_demand"] == 0.0  # a gentle brake: a_stop = 0.59 < 2
+    assert reward(braking(-3.0, -7.7), MarginReward())[1]["stop_demand"] == 0.0  # default weight 0
+    assert reward(braking(-3.0, -7.7, gap=200.0), fn)[1]["stop_demand"] == 0.0  # outside Gapsafe
+    # each weight adds w to the most a step can cost (the collision term's remaining-steps charge)
+    assert fn.max_step_cost == pytest.approx(MarginReward().max_step_cost + 1.0)
+    with pytest.raises(ValueError, match="a_lead"):
+        fn(state(31.4, 48.0, 28.0))  # indicators without a_lead
+    with pytest.raises(ValueError, match="stop_demand"):
+        MarginReward(stop_demand=-1.0)
