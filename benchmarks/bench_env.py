@@ -141,15 +141,23 @@ def vector_env_rate(num_envs: int, steps: int, seed: int, parallel: bool = False
     kwargs = {"mpc_settings": MPCSettings(parallel=None)} if parallel else {}
     envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", workers=workers,
                         **kwargs, **settings)
+    rate = num_envs * steps / _timed_steps(envs, num_envs, steps, seed)
+    envs.close()
+    return rate
+
+
+def _timed_steps(envs, num_envs: int, steps: int, seed: int, before=None) -> float:
+    """Reset ``envs`` with ``seed``, call ``before()`` (if given), then time ``steps`` steps of
+    small random actions drawn from ``seed``: the seconds they took."""
     rng = np.random.default_rng(seed)
     envs.reset(seed=seed)
     actions = rng.uniform(-0.3, 0.3, (steps, num_envs, 1)).astype(np.float32)
+    if before is not None:
+        before()
     t0 = time.perf_counter()
     for k in range(steps):
         envs.step(actions[k])
-    rate = num_envs * steps / (time.perf_counter() - t0)
-    envs.close()
-    return rate
+    return time.perf_counter() - t0
 
 
 def vector_env_split(num_envs: int, steps: int, seed: int, env_id: str = "acc_gym/SingleLane-v0",
@@ -171,15 +179,11 @@ def vector_env_split(num_envs: int, steps: int, seed: int, env_id: str = "acc_gy
             spent[0] += time.perf_counter() - t
             spent[1] += len(rows)
 
+    def restart() -> None:  # the initial reset is not part of the timed run
+        spent[:] = [0.0, 0]
+
     inner._reset_rows = counted
-    rng = np.random.default_rng(seed)
-    envs.reset(seed=seed)
-    spent[:] = [0.0, 0]
-    actions = rng.uniform(-0.3, 0.3, (steps, num_envs, 1)).astype(np.float32)
-    t0 = time.perf_counter()
-    for k in range(steps):
-        envs.step(actions[k])
-    total = time.perf_counter() - t0
+    total = _timed_steps(envs, num_envs, steps, seed, before=restart)
     envs.close()
     return {"steps_per_s": num_envs * steps / total, "reset_share": spent[0] / total,
             "steps_per_s_without_resets": num_envs * steps / (total - spent[0]), "resets": spent[1]}

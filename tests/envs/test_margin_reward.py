@@ -3,6 +3,8 @@ computations, its gradient where the v0 reward has none, and its order of a fixe
 behaviours against the order of their points (the leaderboard's: the 100-point score,
 0 for a collision) on the same episodes."""
 
+import dataclasses
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -346,8 +348,7 @@ def test_the_stop_demand_term_counts_the_braking_vehicle_aheads_own_stop():
     from paper 001's a_req. The case traced in candidate V's seed 2: 31.4 m/s, 48 m behind a
     vehicle at 28 m/s braking at 7.7 m/s^2."""
     def braking(a, a_lead, v=31.4, gap=48.0, v_lead=28.0):
-        s = state(v, gap, v_lead, set_speed=33.3, a=a)
-        return StepIndicators(**{**s.__dict__, "a_lead": np.array([a_lead])})
+        return dataclasses.replace(state(v, gap, v_lead, set_speed=33.3, a=a), a_lead=np.array([a_lead]))
 
     fn = MarginReward(stop_demand=1.0)
     a_stop = 31.4 ** 2 / (2.0 * (48.0 + 28.0 ** 2 / (2.0 * 7.7)))  # 4.98 m/s^2
