@@ -286,7 +286,7 @@ MARGIN_TERMS = ("band", "efficiency", "speed", "response", "comfort", "jerk", "s
 MARGIN_W = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "peak",
             "slope", "response_decel", "jerk_scale", "max_step_cost", "A_COUNTED", "JERK_COUNTED", "E_COUNTED",
             "overspeed", "overspeed_scale", "reach", "behind", "standstill", "standstill_gap", "STOPPED", "demand",
-            "release", "let_go", "stop_demand")
+            "release", "let_go", "stop_demand", "behind_outside_margin")
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -303,9 +303,9 @@ def margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, r
     """
     (band_w, eff_w, speed_w, resp_w, comfort_w, jerk_w, safety_w, coll_w, lag_w, peak, slope, resp_decel,
      jerk_scale, max_cost, a_counted, jerk_counted, e_counted, over_w, over_scale, reach_w, behind_w, stand_w, stand_gap,
-     stopped, demand_w, release_w, let_go_w, stop_w) = (
+     stopped, demand_w, release_w, let_go_w, stop_w, outside_only) = (
         w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12], w[13], w[14], w[15], w[16],
-        w[17], w[18], w[19], w[20], w[21], w[22], w[23], w[24], w[25], w[26], w[27])
+        w[17], w[18], w[19], w[20], w[21], w[22], w[23], w[24], w[25], w[26], w[27], w[28] != 0.0)
     width = max(peak, 1.0 - peak)
     n = fl.shape[1]
     for i in range(n):
@@ -314,7 +314,7 @@ def margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, r
         gap = fl[F_GAP, i]
         following = bo[B_FOLLOWING, i]
         far = 1.2 * tau1[i] * fl[F_VLEAD, i] + 5.0  # [m]
-        behind = bo[B_FOLLOWABLE, i] and gap > far
+        behind = bo[B_FOLLOWABLE, i] and gap > far and not (outside_only and fl[F_Q, i] < 0.0)
         lag = 0.0
         if behind:
             x = (gap - far) / far

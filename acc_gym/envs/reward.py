@@ -89,6 +89,10 @@ def _check_weights(reward, positive: tuple[str, ...]) -> None:
     name = type(reward).__name__
     for f in fields(reward):
         value = getattr(reward, f.name)
+        if f.type in (bool, "bool"):  # a switch, not a weight
+            if not isinstance(value, bool):
+                raise ValueError(f"{name}.{f.name} must be True or False, got {value!r}")
+            continue
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
             raise ValueError(f"{name}.{f.name} must be a number >= 0, got {value!r}")
         if f.name in positive and value <= 0:
@@ -231,6 +235,14 @@ class MarginReward:
                     it needs about 5 (docs/rl-training.md, candidate V's trace)
     ==============  ====================================================================  ==========
 
+    ``behind_outside_margin`` (a switch, False by default): True counts the ego as far behind
+    (where ``speed``, ``lag`` and ``behind`` apply to a followable vehicle) only where ``Q >= 0``.
+    ``D`` follows the vehicle ahead's speed, so while it brakes hard ``D`` falls below the gap
+    and an ego still inside Gapsafe counts as far behind: ``behind`` charges and ``speed``
+    pays for holding speed there, beside the terms that ask it to brake (candidate W's
+    collision, docs/rl-training.md). With the switch, inside Gapsafe only ``response``,
+    ``demand``, ``stop_demand`` and the terms that apply everywhere act.
+
     The comfort and jerk terms count ``|a|`` up to 9 m/s^2 and the jerk up to 30 m/s^3, and
     the speed term's slope stops at ``e = 5`` (a parked ego), so a step costs at most
     :attr:`max_step_cost` (5.58 with the defaults; ``overspeed`` adds ``5 w``, ``reach``, ``behind``,
@@ -346,7 +358,9 @@ class MarginReward:
     demand: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.17.0, not shipped
     release: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.20.0, not shipped
     let_go: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); candidate P (0.20.0)
-    stop_demand: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); added in 0.20.3, not yet tried
+    stop_demand: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); added in 0.20.3, candidate W
+    # False: the -v1 ids' default reward as released (0.8.0), far behind counted inside Gapsafe too; added in 0.20.4
+    behind_outside_margin: bool = False
     standstill_gap: float = 3.0  # [m] the standstill term charges a stop (at the proper response) closer than this
     peak: float = 0.5  # [-] u_t where the efficiency tent is highest (0: the safety boundary, 1: the band's far edge)
     slope: float = 0.25  # [-] the speed term's slope beyond 20 % off the set speed, per 20 %
@@ -413,6 +427,8 @@ class MarginReward:
         far = 1.2 * np.asarray(s.tau1, dtype=float) * v_lead + 5.0  # [m]
         with np.errstate(invalid="ignore"):
             behind = followable & (gap > far)
+            if self.behind_outside_margin:
+                behind &= ~(np.asarray(s.q, dtype=float) < 0)  # not inside Gapsafe
             x = np.where(behind, (gap - far) / far, 0.0)
             lag = np.where(behind, np.where(np.isfinite(x), x / (1.0 + x), 1.0), 0.0)
         set_speed = np.asarray(s.set_speed, dtype=float)

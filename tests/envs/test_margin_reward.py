@@ -371,3 +371,29 @@ def test_the_stop_demand_term_counts_the_braking_vehicle_aheads_own_stop():
         fn(state(31.4, 48.0, 28.0))  # indicators without a_lead
     with pytest.raises(ValueError, match="stop_demand"):
         MarginReward(stop_demand=-1.0)
+
+
+def test_behind_outside_margin_stops_far_behind_counting_inside_gapsafe():
+    """behind_outside_margin (0.20.4): candidate W's collision step, traced -- the ego at 31 m/s,
+    40 m behind a vehicle braking down through 10 m/s. The far edge D = 1.2 tau v_lead + 5 = 23 m
+    is below the gap, so by default the ego counts as far behind although it is inside Gapsafe:
+    behind -1, lag, and the speed term paying for holding speed. With the switch those three
+    are 0 there, and unchanged outside Gapsafe (300 m behind)."""
+    fn = MarginReward(behind=1.0, stop_demand=1.0)
+    gated = dataclasses.replace(fn, behind_outside_margin=True)
+    s = dataclasses.replace(state(31.0, 40.0, 10.0, set_speed=31.0, a=-3.0), a_lead=np.array([-7.0]))
+    far = 1.2 * TAU * 10.0 + 5.0  # 23 m
+    assert s.gap[0] > far and s.q[0] < 0  # Gapsafe = 46.5 + (31^2 - 10^2) / 16 = 100.3 m
+    t = reward(s, fn)[1]
+    assert t["behind"] == -1.0 and t["speed"] == 1.0  # at the set speed: +1
+    assert t["lag"] == pytest.approx(-0.5 * (17 / 23) / (1 + 17 / 23))
+    g = reward(s, gated)[1]
+    assert g["behind"] == g["speed"] == g["lag"] == 0.0
+    for key in ("response", "stop_demand", "comfort", "jerk"):  # the terms that ask it to brake: unchanged
+        assert g[key] == t[key]
+    assert g["stop_demand"] < 0
+    # far behind outside Gapsafe: the same with and without the switch
+    out = dataclasses.replace(state(31.0, 300.0, 25.0, set_speed=31.0), a_lead=np.array([0.0]))
+    assert out.q[0] > 0 and reward(out, gated) == reward(out, fn) and reward(out, fn)[1]["behind"] == -1.0
+    with pytest.raises(ValueError, match="behind_outside_margin.*1"):
+        MarginReward(behind_outside_margin=1)

@@ -38,8 +38,9 @@ def same_bits(a, b) -> bool:
                                                                  response_decel=3.0, collision=50.0, overspeed=1.5,
                                                                  overspeed_scale=0.05, reach=0.7, behind=0.9,
                                                                  standstill=0.8, standstill_gap=4.0, demand=0.6,
-                                                                 release=0.3, let_go=0.4, stop_demand=0.7)],
-                         ids=["default", "weights"])
+                                                                 release=0.3, let_go=0.4, stop_demand=0.7),
+                                    MarginReward(behind=0.9, lag=1.5, behind_outside_margin=True)],
+                         ids=["default", "weights", "outside"])
 def test_margin_reward_from_criteria_rows_equals_the_numpy_reference(reward):
     rng = np.random.default_rng(1)
     n = 2000
@@ -71,6 +72,9 @@ def test_margin_reward_from_criteria_rows_equals_the_numpy_reference(reward):
         lg = terms_slow["let_go"]
         full = -reward.let_go * (MarginReward.JERK_COUNTED / reward.jerk_scale) ** 2
         assert (lg == full).any() and ((lg < 0) & (lg > full)).any() and ((lg == 0) & (terms_slow["release"] < 0)).any()
+    if reward.behind:  # far behind: charged outside Gapsafe, and inside it unless behind_outside_margin
+        inside_far = (terms_slow["lag"] < 0) & (fl[K.F_Q] < 0)
+        assert (terms_slow["behind"] < 0).any() and inside_far.any() != reward.behind_outside_margin
     if reward.stop_demand:  # behind a braking vehicle, stopping needing more than the proper response: full, part, none
         sd = terms_slow["stop_demand"]
         assert (sd == -reward.stop_demand).any() and ((sd < 0) & (sd > -reward.stop_demand)).any() and (sd == 0).any()
