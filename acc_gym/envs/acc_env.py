@@ -323,6 +323,8 @@ class ACCEnv(gym.Env):
     * acc-gym 0.20.3 (issue 33), no id changed: ``MarginReward`` has one more term,
       ``stop_demand`` (weight 0 in the ``-v1`` ids' reward: its values are as before;
       ``info["rewards"]`` lists it, at 0).
+    * acc-gym 0.20.4 (issue 33), no id changed: ``MarginReward`` has a switch,
+      ``behind_outside_margin`` (off in the ``-v1`` ids' reward: its values are as before).
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 5}
