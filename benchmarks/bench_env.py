@@ -61,7 +61,9 @@ episodes counted apart (the vector env's autoresets: drawing the scenarios, buil
 scenes, installing their drivers), and reports ``vector_<case>_reset_share`` (that time over
 the run's) and ``vector_<case>_steps_per_s_without_resets`` (the steps over the rest of the
 time: what the case would run at if starting an episode were free, the ceiling of any work
-on resets), medians over the repeats (:func:`vector_env_split`).
+on resets), ``vector_<case>_steps_per_episode`` (env-steps per autoreset) and
+``vector_<case>_condense_share`` (the part of the run's time spent condensing the new MPC
+drivers' QPs, inside the resets), medians over the repeats (:func:`vector_env_split`).
 
 ``--against DIR`` times another checkout of the package (e.g. the previous release:
 ``git worktree add /tmp/prev v0.5.0``) in the same run: each repeat runs this script once
@@ -163,13 +165,20 @@ def _timed_steps(envs, num_envs: int, steps: int, seed: int, before=None) -> flo
 def vector_env_split(num_envs: int, steps: int, seed: int, env_id: str = "acc_gym/SingleLane-v0",
                      **settings) -> dict:
     """The vector env of :func:`vector_env_rate` (one process) with the time its autoresets take
-    counted apart: ``{"steps_per_s", "reset_share", "steps_per_s_without_resets", "resets"}``.
-    The env's own ``_reset_rows`` (what an autoreset runs: draw, build, install) is wrapped in
-    a timer on this instance only; the initial ``reset`` is outside the timed run."""
+    counted apart: ``{"steps_per_s", "reset_share", "steps_per_s_without_resets", "resets",
+    "steps_per_episode", "condensations", "condense_share"}``. The env's own ``_reset_rows``
+    (what an autoreset runs: draw, build, install) is wrapped in a timer on this instance
+    only; the initial ``reset`` is outside the timed run. ``condensations`` counts the MPC
+    drivers' QPs condensed in the run (:class:`~acc_gym.drivers.qp.CondensedQP` built: each
+    new driver configuration's follow and cruise QPs, at its install) and ``condense_share``
+    is their time over the run's, part of ``reset_share``."""
+    from acc_gym.drivers import qp
+
     envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **settings)
     inner = envs.unwrapped
     timed = inner._reset_rows
-    spent = [0.0, 0]  # [s], calls' rows
+    spent = [0.0, 0, 0.0, 0]  # [s] in resets, their rows, [s] condensing, QPs condensed
+    build = qp.CondensedQP.__init__
 
     def counted(rows, *args, **kwargs):
         t = time.perf_counter()
@@ -179,14 +188,28 @@ def vector_env_split(num_envs: int, steps: int, seed: int, env_id: str = "acc_gy
             spent[0] += time.perf_counter() - t
             spent[1] += len(rows)
 
+    def condensing(self, *args, **kwargs):
+        t = time.perf_counter()
+        try:
+            return build(self, *args, **kwargs)
+        finally:
+            spent[2] += time.perf_counter() - t
+            spent[3] += 1
+
     def restart() -> None:  # the initial reset is not part of the timed run
-        spent[:] = [0.0, 0]
+        spent[:] = [0.0, 0, 0.0, 0]
 
     inner._reset_rows = counted
-    total = _timed_steps(envs, num_envs, steps, seed, before=restart)
+    qp.CondensedQP.__init__ = condensing
+    try:
+        total = _timed_steps(envs, num_envs, steps, seed, before=restart)
+    finally:
+        qp.CondensedQP.__init__ = build
     envs.close()
     return {"steps_per_s": num_envs * steps / total, "reset_share": spent[0] / total,
-            "steps_per_s_without_resets": num_envs * steps / (total - spent[0]), "resets": spent[1]}
+            "steps_per_s_without_resets": num_envs * steps / (total - spent[0]), "resets": spent[1],
+            "steps_per_episode": num_envs * steps / spent[1] if spent[1] else float("inf"),
+            "condensations": spent[3], "condense_share": spent[2] / total}
 
 
 def vector_policy_rate(num_envs: int, steps: int, seed: int, workers: int = 1) -> float:
@@ -385,7 +408,7 @@ def main(argv=None) -> dict:
                 vector_env_rate(args.num_envs, args.vector_steps, r, env_id=env_id, **settings))
             if args.split:
                 split = vector_env_split(args.num_envs, args.vector_steps, r, env_id=env_id, **settings)
-                for name in ("reset_share", "steps_per_s_without_resets"):
+                for name in ("reset_share", "steps_per_s_without_resets", "steps_per_episode", "condense_share"):
                     runs.setdefault(f"vector_{case}_{name}", []).append(split[name])
             if args.peers and case == "env_idm":
                 runs.setdefault("sumo_steps_per_s", []).append(sumo_peer.rate(args.steps))

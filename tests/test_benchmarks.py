@@ -141,6 +141,15 @@ def test_bench_env_split_counts_every_autoreset_and_only_them():
     assert 0.0 < split["reset_share"] < 1.0
     assert split["steps_per_s_without_resets"] > split["steps_per_s"]
     assert split["steps_per_s"] == pytest.approx(split["steps_per_s_without_resets"] * (1.0 - split["reset_share"]))
+    assert split["steps_per_episode"] == pytest.approx(num_envs * steps / ended)
+    # the new scenes' MPC drivers are condensed inside the resets (two QPs a new configuration) ...
+    assert split["condensations"] >= 2 and 0.0 < split["condense_share"] < split["reset_share"]
+    # ... and baseline drivers have none; the wrapper is gone after the run
+    from acc_gym.drivers import qp
+
+    idm = bench_env.vector_env_split(num_envs, 60, 3, env_id="acc_gym/SingleLane-v1", drivers="idm")
+    assert idm["condensations"] == 0 and idm["condense_share"] == 0.0 and idm["resets"] > 0
+    assert qp.CondensedQP.__init__.__name__ == "__init__"
 
 
 def test_bench_leaderboard_json_keys():
