@@ -252,5 +252,6 @@ def test_v1_entries_train_with_the_reward_the_reward_tests_check():
         assert entries["acc_gym/CarFollowing-v1"] == entries["acc_gym/SingleLane-v1"]
     weights = hp.env_kwargs(hp.load("ppo")["acc_gym/CarFollowing-v1"])["reward_fn"]
     env = gym.make("acc_gym/CarFollowing-v1", reward_fn=weights)
-    assert env.unwrapped.core.reward_fn == MarginReward(reach=0.5)
+    assert env.unwrapped.core.reward_fn == MarginReward(reach=0.5, demand=1.0, let_go=0.08, overspeed=3.0, behind=1.0,
+                                                       stop_demand=3.0, behind_outside_margin=True)
     assert "reward_fn" not in hp.env_kwargs(hp.load("sac")["acc_gym/CarFollowing-v1"])

@@ -17,12 +17,14 @@ from acc_gym_agents.controllers.linear import LinearACC
 
 TAU = 1.5  # [s]
 # the reward the shipped -v1 training settings use (agents/rl/hyperparams/*.yml: env_kwargs reward_fn)
-SHIPPED = MarginReward(reach=0.5)
+SHIPPED = MarginReward(reach=0.5, demand=1.0, let_go=0.08, overspeed=3.0, behind=1.0, stop_demand=3.0,
+                       behind_outside_margin=True)  # acc-gym 0.21.0 (candidate Z)
+REACH = MarginReward(reach=0.5)  # the shipped training reward of acc-gym 0.11.0-0.20.4, the base of the terms' tests
 B = 8.0  # [m/s^2]
 
 
 def state(v, gap=np.inf, v_lead=0.0, set_speed=25.0, a=0.0, jerk=0.0, violation=False, collision=False,
-          steps_left=0):
+          steps_left=0, a_lead=0.0):
     """The indicators of one step, computed from the state as the environment does (Gapsafe, Q,
     band, u_t; a following sample: a lead in view and moving; free: nothing in view)."""
     v, gap = np.array([float(v)]), np.array([float(gap)])
@@ -37,7 +39,8 @@ def state(v, gap=np.inf, v_lead=0.0, set_speed=25.0, a=0.0, jerk=0.0, violation=
                           in_band=(gs > 0) & (q > 0) & (q < 0.2 * gs), following=following, free=~in_view, u=u,
                           violation=np.array([violation]), collision=np.array([collision]),
                           followable=np.isfinite(gap) & (v_lead > 0) & (v_lead <= set_speed),
-                          v_lead=np.array([float(v_lead)]), tau1=np.array([TAU]), steps_left=np.array([steps_left]))
+                          v_lead=np.array([float(v_lead)]), tau1=np.array([TAU]), steps_left=np.array([steps_left]),
+                          a_lead=np.array([float(a_lead)]))
 
 
 def reward(s, fn=None):
@@ -127,7 +130,7 @@ def test_the_behind_term_equals_hand_computations():
     shipped_behind = MarginReward(reach=0.5, behind=1.0)
     walk = [reward(state(20.0, g, 20.0, set_speed=20.0), shipped_behind)[0] for g in gaps]
     assert walk == sorted(walk) and walk[-1] == pytest.approx(2.0)
-    plain = [reward(state(20.0, g, 20.0, set_speed=20.0), SHIPPED)[0] for g in gaps]
+    plain = [reward(state(20.0, g, 20.0, set_speed=20.0), REACH)[0] for g in gaps]
     assert plain[2] > plain[3]  # the default drops at the lag's start
 
 
@@ -150,7 +153,7 @@ def test_the_standstill_term_equals_hand_computations():
     # creeping up to a stopped car (0.5 m/s at 1 m, the step before Gapsafe exceeds the gap, as a PPO policy learnt
     # to) pays the shipped training reward as much as standing 4 m back; with the term 2.0625 / 3 less
     creep, back = state(0.5, 1.0, 0.0), state(0.0, 4.0, 0.0)
-    assert reward(creep, SHIPPED)[0] == pytest.approx(reward(back, SHIPPED)[0], abs=1e-12)
+    assert reward(creep, REACH)[0] == pytest.approx(reward(back, REACH)[0], abs=1e-12)
     with_term = MarginReward(reach=0.5, standstill=1.0)
     assert reward(creep, with_term)[0] == pytest.approx(reward(back, with_term)[0] - 2.0625 / 3)
     with pytest.raises(ValueError, match="standstill_gap"):
@@ -182,7 +185,7 @@ def test_the_demand_term_equals_hand_computations():
     # rolling at 5 m/s (a_req 3.125). The shipped training reward pays releasing from 5.3 to 2.1 m/s^2 by
     # comfort's 0.1 (5.3^2 - 2.1^2) / 9 = 0.263; with the term, releasing costs 0.911 more than that
     hard, soft = state(15.0, 16.0, 5.0, a=-5.3), state(15.0, 16.0, 5.0, a=-2.1)
-    assert reward(soft, SHIPPED)[0] - reward(hard, SHIPPED)[0] == pytest.approx(0.1 * (5.3 ** 2 - 2.1 ** 2) / 9)
+    assert reward(soft, REACH)[0] - reward(hard, REACH)[0] == pytest.approx(0.1 * (5.3 ** 2 - 2.1 ** 2) / 9)
     with_term = MarginReward(reach=0.5, demand=1.0)
     assert reward(hard, with_term)[0] - reward(soft, with_term)[0] == pytest.approx(
         (3.125 - 2.1) / 1.125 - 0.1 * (5.3 ** 2 - 2.1 ** 2) / 9)
@@ -209,7 +212,7 @@ def test_the_release_term_equals_hand_computations():
     with_term, m = MarginReward(reach=0.5, demand=1.0, release=0.08), MarginReward(reach=0.5, demand=1.0, jerk=0.1)
     let_go, onset = state(**inside, a=-1.0, jerk=60.0), state(**inside, a=-7.0, jerk=-60.0)
     for s in (let_go, onset):
-        assert reward(s, SHIPPED)[1]["jerk"] == pytest.approx(-0.18)
+        assert reward(s, REACH)[1]["jerk"] == pytest.approx(-0.18)
     assert sum(reward(let_go, with_term)[1][k] for k in ("jerk", "release")) == pytest.approx(
         reward(let_go, m)[1]["jerk"]) == pytest.approx(-0.9)
     assert sum(reward(onset, with_term)[1][k] for k in ("jerk", "release")) == pytest.approx(-0.18)
@@ -368,7 +371,7 @@ def test_the_stop_demand_term_counts_the_braking_vehicle_aheads_own_stop():
     # each weight adds w to the most a step can cost (the collision term's remaining-steps charge)
     assert fn.max_step_cost == pytest.approx(MarginReward().max_step_cost + 1.0)
     with pytest.raises(ValueError, match="a_lead"):
-        fn(state(31.4, 48.0, 28.0))  # indicators without a_lead
+        fn(dataclasses.replace(state(31.4, 48.0, 28.0), a_lead=None))  # indicators without a_lead
     with pytest.raises(ValueError, match="stop_demand"):
         MarginReward(stop_demand=-1.0)
 
