@@ -63,7 +63,8 @@ the run's) and ``vector_<case>_steps_per_s_without_resets`` (the steps over the 
 time: what the case would run at if starting an episode were free, the ceiling of any work
 on resets), ``vector_<case>_steps_per_episode`` (env-steps per autoreset) and
 ``vector_<case>_condense_share`` (the part of the run's time spent condensing the new MPC
-drivers' QPs, inside the resets), medians over the repeats (:func:`vector_env_split`).
+drivers' QPs, inside the resets), ``vector_<case>_condensations_per_episode`` and
+``vector_<case>_us_per_condensation``, medians over the repeats (:func:`vector_env_split`).
 
 ``--against DIR`` times another checkout of the package (e.g. the previous release:
 ``git worktree add /tmp/prev v0.5.0``) in the same run: each repeat runs this script once
@@ -166,7 +167,8 @@ def vector_env_split(num_envs: int, steps: int, seed: int, env_id: str = "acc_gy
                      **settings) -> dict:
     """The vector env of :func:`vector_env_rate` (one process) with the time its autoresets take
     counted apart: ``{"steps_per_s", "reset_share", "steps_per_s_without_resets", "resets",
-    "steps_per_episode", "condensations", "condense_share"}``. The env's own ``_reset_rows``
+    "steps_per_episode", "condensations", "condense_share", "condensations_per_episode",
+    "us_per_condensation"}``. The env's own ``_reset_rows``
     (what an autoreset runs: draw, build, install) is wrapped in a timer on this instance
     only; the initial ``reset`` is outside the timed run. ``condensations`` counts the MPC
     drivers' QPs condensed in the run (:class:`~acc_gym.drivers.qp.CondensedQP` built: each
@@ -209,7 +211,9 @@ def vector_env_split(num_envs: int, steps: int, seed: int, env_id: str = "acc_gy
     return {"steps_per_s": num_envs * steps / total, "reset_share": spent[0] / total,
             "steps_per_s_without_resets": num_envs * steps / (total - spent[0]), "resets": spent[1],
             "steps_per_episode": num_envs * steps / spent[1] if spent[1] else float("inf"),
-            "condensations": spent[3], "condense_share": spent[2] / total}
+            "condensations": spent[3], "condense_share": spent[2] / total,
+            "condensations_per_episode": spent[3] / spent[1] if spent[1] else 0.0,
+            "us_per_condensation": 1e6 * spent[2] / spent[3] if spent[3] else 0.0}
 
 
 def vector_policy_rate(num_envs: int, steps: int, seed: int, workers: int = 1) -> float:
@@ -408,7 +412,8 @@ def main(argv=None) -> dict:
                 vector_env_rate(args.num_envs, args.vector_steps, r, env_id=env_id, **settings))
             if args.split:
                 split = vector_env_split(args.num_envs, args.vector_steps, r, env_id=env_id, **settings)
-                for name in ("reset_share", "steps_per_s_without_resets", "steps_per_episode", "condense_share"):
+                for name in ("reset_share", "steps_per_s_without_resets", "steps_per_episode", "condense_share",
+                             "condensations_per_episode", "us_per_condensation"):
                     runs.setdefault(f"vector_{case}_{name}", []).append(split[name])
             if args.peers and case == "env_idm":
                 runs.setdefault("sumo_steps_per_s", []).append(sumo_peer.rate(args.steps))

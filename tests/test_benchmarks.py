@@ -144,6 +144,9 @@ def test_bench_env_split_counts_every_autoreset_and_only_them():
     assert split["steps_per_episode"] == pytest.approx(num_envs * steps / ended)
     # the new scenes' MPC drivers are condensed inside the resets (two QPs a new configuration) ...
     assert split["condensations"] >= 2 and 0.0 < split["condense_share"] < split["reset_share"]
+    assert split["condensations_per_episode"] == pytest.approx(split["condensations"] / ended)
+    total = num_envs * steps / split["steps_per_s"]  # [s]
+    assert split["us_per_condensation"] == pytest.approx(1e6 * split["condense_share"] * total / split["condensations"])
     # ... and baseline drivers have none; the wrapper is gone after the run
     from acc_gym.drivers import qp
 
