@@ -182,21 +182,19 @@ def vector_env_split(num_envs: int, steps: int, seed: int, env_id: str = "acc_gy
     spent = [0.0, 0, 0.0, 0]  # [s] in resets, their rows, [s] condensing, QPs condensed
     build = qp.CondensedQP.__init__
 
-    def counted(rows, *args, **kwargs):
-        t = time.perf_counter()
-        try:
-            return timed(rows, *args, **kwargs)
-        finally:
-            spent[0] += time.perf_counter() - t
-            spent[1] += len(rows)
+    def timing(fn, at: int, count):
+        """``fn`` adding its time to ``spent[at]`` and ``count(args)`` to ``spent[at + 1]``."""
+        def wrapped(*args, **kwargs):
+            t = time.perf_counter()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                spent[at] += time.perf_counter() - t
+                spent[at + 1] += count(args)
+        return wrapped
 
-    def condensing(self, *args, **kwargs):
-        t = time.perf_counter()
-        try:
-            return build(self, *args, **kwargs)
-        finally:
-            spent[2] += time.perf_counter() - t
-            spent[3] += 1
+    counted = timing(timed, 0, lambda args: len(args[0]))  # an autoreset's rows
+    condensing = timing(build, 2, lambda args: 1)  # (self, ...): one QP
 
     def restart() -> None:  # the initial reset is not part of the timed run
         spent[:] = [0.0, 0, 0.0, 0]
