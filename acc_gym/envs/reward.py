@@ -424,11 +424,12 @@ class MarginReward:
         followable = np.asarray(s.followable, dtype=bool)
         gap = np.asarray(s.gap, dtype=float)
         v_lead = np.asarray(s.v_lead, dtype=float)
+        q = np.asarray(s.q, dtype=float)  # [m]
         far = 1.2 * np.asarray(s.tau1, dtype=float) * v_lead + 5.0  # [m]
         with np.errstate(invalid="ignore"):
             behind = followable & (gap > far)
             if self.behind_outside_margin:
-                behind &= ~(np.asarray(s.q, dtype=float) < 0)  # not inside Gapsafe
+                behind &= ~(q < 0)  # not inside Gapsafe
             x = np.where(behind, (gap - far) / far, 0.0)
             lag = np.where(behind, np.where(np.isfinite(x), x / (1.0 + x), 1.0), 0.0)
         set_speed = np.asarray(s.set_speed, dtype=float)
@@ -437,7 +438,6 @@ class MarginReward:
         width = max(self.peak, 1.0 - self.peak)
         u = np.nan_to_num(np.asarray(s.u, dtype=float), nan=1.0)
         tent = np.maximum(0.0, 1.0 - np.abs(u - self.peak) / width)
-        q = np.asarray(s.q, dtype=float)
         a = np.asarray(s.a, dtype=float)  # [m/s^2]
         short = a + self.response_decel
         from acc_gym.envs._kernel import REACH_BAND
