@@ -63,7 +63,8 @@ the run's) and ``vector_<case>_steps_per_s_without_resets`` (the steps over the 
 time: what the case would run at if starting an episode were free, the ceiling of any work
 on resets), ``vector_<case>_steps_per_episode`` (env-steps per autoreset) and
 ``vector_<case>_condense_share`` (the part of the run's time spent condensing the new MPC
-drivers' QPs, inside the resets), ``vector_<case>_condensations_per_episode`` and
+drivers' QPs: the cruise QP inside the resets, the follow QP at a driver's first real target),
+``vector_<case>_condensations_per_episode`` and
 ``vector_<case>_us_per_condensation``, medians over the repeats (:func:`vector_env_split`).
 
 ``--against DIR`` times another checkout of the package (e.g. the previous release:
@@ -172,8 +173,9 @@ def vector_env_split(num_envs: int, steps: int, seed: int, env_id: str = "acc_gy
     (what an autoreset runs: draw, build, install) is wrapped in a timer on this instance
     only; the initial ``reset`` is outside the timed run. ``condensations`` counts the MPC
     drivers' QPs condensed in the run (:class:`~acc_gym.drivers.qp.CondensedQP` built: each
-    new driver configuration's follow and cruise QPs, at its install) and ``condense_share``
-    is their time over the run's, part of ``reset_share``."""
+    new driver configuration's cruise QP at its install, inside the resets, and its follow QP
+    at its first step with a real target, inside a step) and ``condense_share`` is their time
+    over the run's."""
     from acc_gym.drivers import qp
 
     envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **settings)

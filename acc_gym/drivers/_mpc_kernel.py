@@ -870,6 +870,15 @@ def _make_prepare(parallel):
         if err != 0:
             return -err
         nd = v0.shape[0]
+        # a driver's follow QP is installed at its first step with a real target (MPCDriver's
+        # lazy install): list the rows that need it now and return before writing anything
+        n_need = 0
+        for i in range(nd):
+            if I[i, I_FOLLOW_PENDING] != 0 and I[i, I_IDLE] == 0 and (gap[i] < np.inf or stop_gap[i] < np.inf):
+                I[n_need, I_HARD] = i
+                n_need += 1
+        if n_need > 0:
+            return -NEED_FOLLOW - n_need
         n = PA.shape[2]
         width = max(n, MAX_ACTIVE + 1)
         o1 = 5 * width
@@ -904,7 +913,10 @@ def _make_prepare(parallel):
 
     prepare.__doc__ = """One step for every driver.
 
-    Returns ``-code`` for invalid inputs (nothing written), else the number of drivers
+    Returns ``-code`` for invalid inputs (nothing written); ``-NEED_FOLLOW - k`` when ``k``
+    drivers flagged in ``I[:, I_FOLLOW_PENDING]`` have a real target (a vehicle ahead or a
+    stop position) this step, their indices in ``I[:, I_HARD]`` and nothing else written: the
+    caller installs their follow QPs and calls again; else the number of drivers
     whose QP the warm active-set solver could not settle (their indices in ``I[:, I_HARD]``):
     the caller solves those with the backend. Rows flagged in ``I[:, I_IDLE]`` are skipped,
     their inputs unread (output 0, path -1, nothing else written): rows do not interact, so the others' numbers
@@ -924,7 +936,9 @@ PARALLEL_MIN_BATCH = 128  # below this many drivers the thread pool costs more t
 I_MODE, I_COUNT, I_HARD = 0, 1, 2
 I_STATS = 3
 I_IDLE = I_STATS + N_STATS  # 1: the row has no driver this step (skipped: output 0, path -1, no statistics)
-I_CODES = I_IDLE + 1
+I_FOLLOW_PENDING = I_IDLE + 1  # 1: the row's follow QP (gains, H^-1 sums) is not installed yet
+I_CODES = I_FOLLOW_PENDING + 1
+NEED_FOLLOW = 1000  # prepare returns -NEED_FOLLOW - k: k pending rows need their follow QP (> every input code)
 
 
 def scratch(n_steps: int, parallel: bool):

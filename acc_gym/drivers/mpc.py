@@ -477,7 +477,9 @@ class MPCDriver:
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
         """Back to ACCELERATE with zeroed statistics; solvers restart cold."""
+        pending = self._I[:, K.I_FOLLOW_PENDING].copy()
         self._I[:] = 0  # modes (ACCELERATE = 0), working sets, statistics
+        self._I[:, K.I_FOLLOW_PENDING] = pending  # which follow QPs are installed is the drivers', not the episode's
         self._PA[:] = 0.0
         self._W[:] = 0.0
         self._W[:, K.W_PATH] = -1
@@ -509,6 +511,13 @@ class MPCDriver:
         from :func:`~acc_gym.drivers.qp.condensed_qp`'s cache when a configuration repeats)
         and their solver workspaces dropped, so a batch of drivers can host a new human in
         one slot while the others drive on -- what a vector environment's autoreset needs.
+
+        Decided (issue 35): the cruise QP is installed here, the follow QP at the driver's
+        first step with a real target (a vehicle ahead or a stop position; the kernel reads
+        the follow law only then). Most surrounding drivers of a single-lane scene never have
+        one (the front vehicle of every scene), so a reset condenses about half as much. The
+        QP is the same whenever it is condensed (:func:`~acc_gym.drivers.qp.condensed_qp` of
+        the same configuration), so the numbers are too (``tests/drivers/test_lazy_follow.py``).
         """
         idx = np.atleast_1d(np.asarray(index, dtype=np.int64))
         if idx.size and (idx.min() < 0 or idx.max() >= self.n):
@@ -546,6 +555,7 @@ class MPCDriver:
         for i in idx.tolist():
             self._install_qps(i)
         self._I[idx] = 0
+        self._I[idx, K.I_FOLLOW_PENDING] = 1
         self._PA[idx] = 0.0
         self._W[idx] = 0.0
         self._W[idx, K.W_PATH] = -1
@@ -571,6 +581,7 @@ class MPCDriver:
         P[-2 * K_TERM:] = alpha + beta
         self._install_qps(i)
         self._I[i] = 0
+        self._I[i, K.I_FOLLOW_PENDING] = 1
         self._PA[i] = 0.0
         W = self._W[i]
         W[:] = 0.0
@@ -586,17 +597,27 @@ class MPCDriver:
         a slow driver's speed-scaled ``q1`` (5,200 at 3 m/s) made the slack cheaper than the
         speed bound 300 m before a stopped vehicle: its QP took slack and the driver braked at
         the vehicle's limit in EMERGENCY (driver model 3)."""
+        return self._follow_qp(q1, q2, r1, c_tg, r_jerk), self._cruise_qp(q1, q2, r1, c_tg, r_jerk)
+
+    def _follow_qp(self, q1: float, q2: float, r1: float, c_tg: float, r_jerk: float):
+        """The follow QP of :meth:`_condensed` (with the lead-acceleration gains when used)."""
         s = self.settings
         k = 1.0 / max(1.0, q1)
         qf = condensed_qp(q1 * k, q2 * k, r1 * k, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk * k)
-        qc = condensed_qp(0.0, q2 * k, r1 * k, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk * k)
         if s.use_lead_accel:
             qf.gain_lead_sums  # noqa: B018  (made once, kept by the shared QP)
-        return qf, qc
+        return qf
+
+    def _cruise_qp(self, q1: float, q2: float, r1: float, c_tg: float, r_jerk: float):
+        """The cruise QP of :meth:`_condensed`."""
+        s = self.settings
+        k = 1.0 / max(1.0, q1)
+        return condensed_qp(0.0, q2 * k, r1 * k, c_tg, self.horizon, s.slack_linear, s.slack_quadratic, r_jerk * k)
 
     def prepare(self, params: MPCDriverParams) -> bool:
-        """Condense the QPs of one driver's ``params`` (plain numbers) now, ahead of the
-        :meth:`set_params` that will install them, which then finds them in
+        """Condense the QP of one driver's ``params`` (plain numbers) that :meth:`set_params`
+        installs (the cruise QP; the follow QP waits for a real target) now, ahead of the
+        :meth:`set_params` that will install it, which then finds it in
         :func:`~acc_gym.drivers.qp.condensed_qp`'s cache: the same objects, so the same
         numbers. A vector environment's worker does this for its next episodes while it
         would otherwise wait (:meth:`ACCVectorEnv.prepare_resets
@@ -606,27 +627,38 @@ class MPCDriver:
         if not all(type(v) is float or (v is not None and np.ndim(v) == 0) for v in values):
             return False
         try:
-            self._condensed(*(float(v) for v in values))
+            self._cruise_qp(*(float(v) for v in values))
         except (ValueError, np.linalg.LinAlgError):
             return False
         return True
 
+    def _config(self, i: int) -> tuple[float, float, float, float, float]:
+        p = self.params
+        return float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]), float(p.r_jerk[i])
+
     def _install_qps(self, i: int) -> None:
-        """Driver ``i``'s condensed QPs (follow and cruise, from the cache when a configuration
-        repeats) and the kernel's rows made from them; its solver workspaces are dropped."""
-        p, s = self.params, self.settings
-        qf, qc = self._condensed(float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]), float(p.r_jerk[i]))
-        self._qp_follow[i], self._qp_cruise[i] = qf, qc
-        self._gain_f[i] = qf.gain
+        """Driver ``i``'s cruise QP (from the cache when a configuration repeats) and the
+        kernel's rows made from it; its follow QP is left to :meth:`_install_follow` (the
+        caller flags the row pending); its solver workspaces are dropped."""
+        qc = self._cruise_qp(*self._config(i))
+        self._qp_follow[i], self._qp_cruise[i] = None, qc
         self._gain_c[i] = qc.gain[:, 1:]
-        self._H[i, 0] = qf.hinv_sums
         self._H[i, 1] = qc.hinv_sums
-        if s.use_lead_accel:
-            self._GL[i] = qf.gain_lead_sums
         if self._backends:
             for key in [k for k in self._backends if k[0] == i]:
                 del self._backends[key]
                 self._last_used.pop(key, None)
+
+    def _install_follow(self, i: int) -> None:
+        """Driver ``i``'s follow QP and the kernel's rows made from it (at its first step with
+        a real target, see :meth:`set_params`)."""
+        qf = self._follow_qp(*self._config(i))
+        self._qp_follow[i] = qf
+        self._gain_f[i] = qf.gain
+        self._H[i, 0] = qf.hinv_sums
+        if self.settings.use_lead_accel:
+            self._GL[i] = qf.gain_lead_sums
+        self._I[i, K.I_FOLLOW_PENDING] = 0
 
     def __getstate__(self):
         state = self.__dict__.copy()
@@ -734,8 +766,12 @@ class MPCDriver:
     def _act(self, arrays: list) -> np.ndarray:
         W = self._W
         n_hard = self._prepare(self._P, self._S, *arrays, self._gain_f, self._gain_c, self._GL, self._H, self._B,
-                               self._PA, W,
-                               self._I, self._SF, self._SC)
+                               self._PA, W, self._I, self._SF, self._SC)
+        if n_hard <= -K.NEED_FOLLOW:  # drivers meeting their first real target: their follow QPs, then the step
+            for i in self._hard[:-n_hard - K.NEED_FOLLOW].tolist():
+                self._install_follow(i)
+            n_hard = self._prepare(self._P, self._S, *arrays, self._gain_f, self._gain_c, self._GL, self._H, self._B,
+                                   self._PA, W, self._I, self._SF, self._SC)
         if n_hard < 0:
             name = _FIELDS[-n_hard - 1]
             raise ValueError(f"observation.{name} is invalid for an MPC driver: {arrays[-n_hard - 1]!r} "

@@ -91,7 +91,7 @@ class SlotDrivers:
 
     def prepare(self, spec) -> bool:
         """Do ahead of :meth:`assign` what needs only the driver ``spec`` itself: an MPC
-        driver's condensed QPs (:meth:`MPCDriver.prepare <acc_gym.drivers.mpc.MPCDriver.prepare>`).
+        driver's condensed cruise QP (:meth:`MPCDriver.prepare <acc_gym.drivers.mpc.MPCDriver.prepare>`).
         Returns whether there was anything to do."""
         if spec is None or spec.model != "mpc" or self._mpc is None:
             return False

@@ -141,7 +141,7 @@ class EpisodeBatch:
 
     def prepare(self, scenario) -> None:
         """Do ahead of :meth:`reset_rows` the part of starting ``scenario`` that depends only
-        on the scenario: its surrounding drivers' condensed QPs (into the shared cache that
+        on the scenario: its surrounding drivers' condensed cruise QPs (into the shared cache that
         :meth:`reset_rows` then reads)."""
         if isinstance(scenario, Scenario):
             for vehicle in scenario.vehicles:

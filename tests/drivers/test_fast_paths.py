@@ -217,9 +217,11 @@ def test_slot_act_rows_equals_act_and_falls_back_for_mixed_slots():
 
 
 def test_prepare_condenses_ahead_what_set_params_then_installs():
-    """``MPCDriver.prepare`` puts a driver's follow and cruise QPs in the shared cache, so the
-    later ``set_params`` installs those very objects (no new condensation) and ends with the
-    rows of a driver that was never prepared; what it cannot take it leaves to set_params."""
+    """``MPCDriver.prepare`` puts the QP that ``set_params`` installs (the cruise QP; the
+    follow QP waits for the driver's first real target, tests/drivers/test_lazy_follow.py) in
+    the shared cache, so the later ``set_params`` installs that very object (no new
+    condensation) and ends with the rows of a driver that was never prepared; what it cannot
+    take it leaves to set_params."""
     from acc_gym.drivers.qp import condensed_qp
 
     rng = np.random.default_rng(11)
@@ -230,7 +232,7 @@ def test_prepare_condenses_ahead_what_set_params_then_installs():
         assert ahead.prepare(params)
         misses = condensed_qp.cache_info().misses
         ahead.set_params(k % 4, params)
-        assert condensed_qp.cache_info().misses == misses  # both QPs came from the cache
+        assert condensed_qp.cache_info().misses == misses  # it came from the cache
         ref.set_params(k % 4, params)
         for name in DRIVER_STATE:
             assert np.array_equal(getattr(ahead, name), getattr(ref, name)), (k, name)
