@@ -64,8 +64,9 @@ time: what the case would run at if starting an episode were free, the ceiling o
 on resets), ``vector_<case>_steps_per_episode`` (env-steps per autoreset) and
 ``vector_<case>_condense_share`` (the part of the run's time spent condensing the new MPC
 drivers' QPs: the cruise QP inside the resets, the follow QP at a driver's first real target),
-``vector_<case>_condensations_per_episode`` and
-``vector_<case>_us_per_condensation``, medians over the repeats (:func:`vector_env_split`).
+``vector_<case>_condensations_per_episode``, ``vector_<case>_us_per_condensation`` and
+``vector_<case>_params_share`` (the part spent drawing the new scenarios' parameters with
+numpy's generators), medians over the repeats (:func:`vector_env_split`).
 
 ``--against DIR`` times another checkout of the package (e.g. the previous release:
 ``git worktree add /tmp/prev v0.5.0``) in the same run: each repeat runs this script once
@@ -169,20 +170,26 @@ def vector_env_split(num_envs: int, steps: int, seed: int, env_id: str = "acc_gy
     """The vector env of :func:`vector_env_rate` (one process) with the time its autoresets take
     counted apart: ``{"steps_per_s", "reset_share", "steps_per_s_without_resets", "resets",
     "steps_per_episode", "condensations", "condense_share", "condensations_per_episode",
-    "us_per_condensation"}``. The env's own ``_reset_rows``
+    "us_per_condensation", "params_share"}``. The env's own ``_reset_rows``
     (what an autoreset runs: draw, build, install) is wrapped in a timer on this instance
     only; the initial ``reset`` is outside the timed run. ``condensations`` counts the MPC
     drivers' QPs condensed in the run (:class:`~acc_gym.drivers.qp.CondensedQP` built: each
     new driver configuration's cruise QP at its install, inside the resets, and its follow QP
     at its first step with a real target, inside a step) and ``condense_share`` is their time
-    over the run's."""
+    over the run's. ``params_share`` is the run's time spent drawing the new scenarios'
+    parameters with numpy's generators (:func:`acc_gym.scenarios.registry.scenario_rngs`, the
+    two generators of each ``(id, seed)``, and :meth:`ScenarioType.sample_params
+    <acc_gym.scenarios.registry.ScenarioType.sample_params>`, the parameter laws): the part of a
+    reset that the ids' numpy streams keep in Python (the counter generator replaces it)."""
     from acc_gym.drivers import qp
+    from acc_gym.scenarios import registry
 
     envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **settings)
     inner = envs.unwrapped
     timed = inner._reset_rows
-    spent = [0.0, 0, 0.0, 0]  # [s] in resets, their rows, [s] condensing, QPs condensed
+    spent = [0.0, 0, 0.0, 0, 0.0, 0]  # [s] in resets, their rows, [s] condensing, QPs condensed, [s] drawing params
     build = qp.CondensedQP.__init__
+    rngs, laws = registry.scenario_rngs, registry.ScenarioType.sample_params
 
     def timing(fn, at: int, count):
         """``fn`` adding its time to ``spent[at]`` and ``count(args)`` to ``spent[at + 1]``."""
@@ -199,21 +206,25 @@ def vector_env_split(num_envs: int, steps: int, seed: int, env_id: str = "acc_gy
     condensing = timing(build, 2, lambda args: 1)  # (self, ...): one QP
 
     def restart() -> None:  # the initial reset is not part of the timed run
-        spent[:] = [0.0, 0, 0.0, 0]
+        spent[:] = [0.0, 0, 0.0, 0, 0.0, 0]
 
     inner._reset_rows = counted
     qp.CondensedQP.__init__ = condensing
+    registry.scenario_rngs = timing(rngs, 4, lambda args: 1)
+    registry.ScenarioType.sample_params = timing(laws, 4, lambda args: 0)
     try:
         total = _timed_steps(envs, num_envs, steps, seed, before=restart)
     finally:
         qp.CondensedQP.__init__ = build
+        registry.scenario_rngs, registry.ScenarioType.sample_params = rngs, laws
     envs.close()
     return {"steps_per_s": num_envs * steps / total, "reset_share": spent[0] / total,
             "steps_per_s_without_resets": num_envs * steps / (total - spent[0]), "resets": spent[1],
             "steps_per_episode": num_envs * steps / spent[1] if spent[1] else float("inf"),
             "condensations": spent[3], "condense_share": spent[2] / total,
             "condensations_per_episode": spent[3] / spent[1] if spent[1] else 0.0,
-            "us_per_condensation": 1e6 * spent[2] / spent[3] if spent[3] else 0.0}
+            "us_per_condensation": 1e6 * spent[2] / spent[3] if spent[3] else 0.0,
+            "params_share": spent[4] / total}
 
 
 def vector_policy_rate(num_envs: int, steps: int, seed: int, workers: int = 1) -> float:
@@ -413,7 +424,7 @@ def main(argv=None) -> dict:
             if args.split:
                 split = vector_env_split(args.num_envs, args.vector_steps, r, env_id=env_id, **settings)
                 for name in ("reset_share", "steps_per_s_without_resets", "steps_per_episode", "condense_share",
-                             "condensations_per_episode", "us_per_condensation"):
+                             "condensations_per_episode", "us_per_condensation", "params_share"):
                     runs.setdefault(f"vector_{case}_{name}", []).append(split[name])
             if args.peers and case == "env_idm":
                 runs.setdefault("sumo_steps_per_s", []).append(sumo_peer.rate(args.steps))

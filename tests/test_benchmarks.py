@@ -142,8 +142,11 @@ def test_bench_env_split_counts_every_autoreset_and_only_them():
     assert split["steps_per_s_without_resets"] > split["steps_per_s"]
     assert split["steps_per_s"] == pytest.approx(split["steps_per_s_without_resets"] * (1.0 - split["reset_share"]))
     assert split["steps_per_episode"] == pytest.approx(num_envs * steps / ended)
-    # the new scenes' MPC drivers are condensed inside the resets (two QPs a new configuration) ...
-    assert split["condensations"] >= 2 and 0.0 < split["condense_share"] < split["reset_share"]
+    # the new scenes' MPC drivers are condensed (the cruise QP inside the resets, the follow QP
+    # at a first real target) ...
+    assert split["condensations"] >= 2 and 0.0 < split["condense_share"] < 1.0
+    # the parameter draws happen inside the resets
+    assert 0.0 < split["params_share"] < split["reset_share"]
     assert split["condensations_per_episode"] == pytest.approx(split["condensations"] / ended)
     total = num_envs * steps / split["steps_per_s"]  # [s]
     assert split["us_per_condensation"] == pytest.approx(1e6 * split["condense_share"] * total / split["condensations"])
@@ -152,7 +155,12 @@ def test_bench_env_split_counts_every_autoreset_and_only_them():
 
     idm = bench_env.vector_env_split(num_envs, 60, 3, env_id="acc_gym/SingleLane-v1", drivers="idm")
     assert idm["condensations"] == 0 and idm["condense_share"] == 0.0 and idm["resets"] > 0
+    assert 0.0 < idm["params_share"] < idm["reset_share"]
+    from acc_gym.scenarios import registry
+
     assert qp.CondensedQP.__init__.__name__ == "__init__"
+    assert registry.scenario_rngs.__name__ == "scenario_rngs"
+    assert registry.ScenarioType.sample_params.__name__ == "sample_params"
 
 
 def test_bench_leaderboard_json_keys():
