@@ -10,8 +10,6 @@ condenses its follow QP.
 
 from __future__ import annotations
 
-from dataclasses import fields
-
 import numpy as np
 
 from acc_gym.drivers import _mpc_kernel as K
@@ -27,15 +25,6 @@ STEPS = 60
 def new_params(rng, n):
     """``n`` fresh drivers' parameters as plain numbers (configurations no cache holds)."""
     return [MPCDriverParams(**sample_driver_values(rng, float(rng.uniform(12.0, 30.0)))) for _ in range(n)]
-
-
-def stacked(params):
-    """One batch of the drivers ``params`` (each field an array over them; None stays None)."""
-    out = {}
-    for f in fields(MPCDriverParams):
-        vals = [getattr(p, f.name) for p in params]
-        out[f.name] = None if all(v is None for v in vals) else np.array(vals, dtype=float)
-    return MPCDriverParams(**out)
 
 
 def run(driver, steps=STEPS, idle=None, after=None):
@@ -93,7 +82,7 @@ def test_lazy_follow_equals_the_eager_install_and_condenses_only_what_is_used():
     assert lazy._I[:, K.I_FOLLOW_PENDING].tolist() == [0, 0, 0, 1]
     assert lazy._qp_follow[3] is None  # row 3 never had a target: its follow QP was never condensed
 
-    eager = MPCDriver(stacked(fresh))  # both QPs installed up front
+    eager = MPCDriver(MPCDriverParams.stack(fresh))  # both QPs installed up front
     assert eager._I[:, K.I_FOLLOW_PENDING].tolist() == [0, 0, 0, 0]
     want = run(eager)
     assert_same(got, want)
@@ -109,7 +98,7 @@ def test_reset_keeps_the_pending_follow_qps():
     fresh = new_params(rng, 4)
     for i, p in enumerate(fresh):
         lazy.set_params(i, p)
-    eager = MPCDriver(stacked(fresh))
+    eager = MPCDriver(MPCDriverParams.stack(fresh))
     for driver in (lazy, eager):  # the same history: five steps without a target, then reset()
         run(driver, steps=5)
         driver.reset()
