@@ -66,7 +66,10 @@ on resets), ``vector_<case>_steps_per_episode`` (env-steps per autoreset) and
 drivers' QPs: the cruise QP inside the resets, the follow QP at a driver's first real target),
 ``vector_<case>_condensations_per_episode``, ``vector_<case>_us_per_condensation`` and
 ``vector_<case>_params_share`` (the part spent drawing the new scenarios' parameters with
-numpy's generators), medians over the repeats (:func:`vector_env_split`).
+numpy's generators), medians over the repeats (:func:`vector_env_split`); and each single case
+once more, as ``<case>_reset_share`` (the time in ``env.reset()``), ``<case>_decide_share``
+(the surrounding drivers deciding), ``<case>_us_per_reset``, ``<case>_us_per_step`` (a step
+without the resets) and ``<case>_steps_per_episode`` (:func:`single_env_split`).
 
 ``--against DIR`` times another checkout of the package (e.g. the previous release:
 ``git worktree add /tmp/prev v0.5.0``) in the same run: each repeat runs this script once
@@ -227,6 +230,46 @@ def vector_env_split(num_envs: int, steps: int, seed: int, env_id: str = "acc_gy
             "params_share": spent[4] / total}
 
 
+def single_env_split(steps: int, seed: int, env_id: str = "acc_gym/SingleLane-v0", **settings) -> dict:
+    """The single env of :func:`single_env_rate` with its time split: ``{"steps_per_s",
+    "reset_share", "decide_share", "us_per_reset", "us_per_step", "steps_per_episode"}``.
+    ``reset_share`` is the run's time in ``env.reset()`` (drawing the scenario, building the
+    scene, installing its drivers), ``decide_share`` the time the surrounding drivers take to
+    decide (:meth:`SingleLaneWorld.decide <acc_gym.simulation.single_lane.SingleLaneWorld.decide>`,
+    wrapped on this env's world only), ``us_per_reset`` a reset's mean time and ``us_per_step``
+    a step's without the resets [us]. The initial reset is outside the timed run."""
+    env = gym.make(env_id, **settings)
+    rng = np.random.default_rng(seed)
+    env.reset(seed=seed)
+    actions = rng.uniform(-0.3, 0.3, (steps, 1)).astype(np.float32)
+    world = env.unwrapped.core.world
+    decide = world.decide
+    spent = [0.0, 0.0, 0]  # [s] in resets, [s] deciding, resets
+
+    def timed_decide(*args, **kwargs):
+        t = time.perf_counter()
+        try:
+            return decide(*args, **kwargs)
+        finally:
+            spent[1] += time.perf_counter() - t
+
+    world.decide = timed_decide  # an instance attribute: this env's world only
+    t0 = time.perf_counter()
+    for k in range(steps):
+        _, _, term, trunc, _ = env.step(actions[k])
+        if term or trunc:
+            t = time.perf_counter()
+            env.reset()
+            spent[0] += time.perf_counter() - t
+            spent[2] += 1
+    total = time.perf_counter() - t0
+    env.close()
+    return {"steps_per_s": steps / total, "reset_share": spent[0] / total, "decide_share": spent[1] / total,
+            "us_per_reset": 1e6 * spent[0] / spent[2] if spent[2] else 0.0,
+            "us_per_step": 1e6 * (total - spent[0]) / steps,
+            "steps_per_episode": steps / spent[2] if spent[2] else float("inf")}
+
+
 def vector_policy_rate(num_envs: int, steps: int, seed: int, workers: int = 1) -> float:
     """The vector env with a policy in the loop, as in training: stable-baselines3's default
     PPO policy (64-64 MLP, one torch thread) samples every action from the observations."""
@@ -383,7 +426,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--against", default=None, metavar="DIR",
                         help="also time the checkout in DIR (PYTHONPATH=DIR), alternating, and report the ratios")
     parser.add_argument("--split", action="store_true",
-                        help="also report each vector case's share of time in autoresets and its rate without them")
+                        help="also report each vector case's share of time in autoresets and its rate without them, "
+                             "and each single case's time in resets and in the drivers' decisions")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     if args.against:
@@ -422,6 +466,9 @@ def main(argv=None) -> dict:
             runs.setdefault(f"vector_{case}_steps_per_s", []).append(
                 vector_env_rate(args.num_envs, args.vector_steps, r, env_id=env_id, **settings))
             if args.split:
+                split = single_env_split(args.steps, r, env_id, **settings)
+                for name in ("reset_share", "decide_share", "us_per_reset", "us_per_step", "steps_per_episode"):
+                    runs.setdefault(f"{case}_{name}", []).append(split[name])
                 split = vector_env_split(args.num_envs, args.vector_steps, r, env_id=env_id, **settings)
                 for name in ("reset_share", "steps_per_s_without_resets", "steps_per_episode", "condense_share",
                              "condensations_per_episode", "us_per_condensation", "params_share"):
@@ -468,8 +515,10 @@ def main(argv=None) -> dict:
             if key.endswith(("_steps_per_s", "_without_resets")):
                 unit = "vehicle-steps/s" if "vehicle_steps" in key else "steps/s"
                 print(f"{key:42s} {value:>12,.0f} {unit}  (runs {out[key + '_runs']})")
-            elif key.endswith("_reset_share"):
+            elif key.endswith(("_reset_share", "_decide_share")):
                 print(f"{key:42s} {value:>12.2f}  (runs {out[key + '_runs']})")
+            elif key.endswith(("_us_per_reset", "_us_per_step")):
+                print(f"{key:42s} {value:>12.1f} us  (runs {out[key + '_runs']})")
         if "sumo_ratio" in out:
             print(f"acc_gym (IDM drivers) / SUMO (libsumo): {out['sumo_ratio']:.2f}x "
                   f"(SingleLane-v1: {out['sumo_ratio_v1']:.2f}x)")

@@ -115,6 +115,38 @@ def test_paired_ratio_is_the_median_of_each_repeats_ratio():
         bench_env.paired_ratio([1, 2], [1])
 
 
+def test_bench_env_single_split_counts_every_reset_and_only_them():
+    """The single env's ``--split``: the resets it times are the episodes that ended in the
+    run (counted on a second env driven with the same seed and actions), the decisions are
+    timed on that env's world only, and the run's time is the steps' plus the resets'."""
+    import gymnasium as gym
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import bench_env
+
+    steps = 400
+    split = bench_env.single_env_split(steps, 3, "acc_gym/SingleLane-v1", drivers="idm")
+    env = gym.make("acc_gym/SingleLane-v1", drivers="idm")
+    env.reset(seed=3)
+    actions = np.random.default_rng(3).uniform(-0.3, 0.3, (steps, 1)).astype(np.float32)
+    ended = 0
+    for k in range(steps):
+        _, _, term, trunc, _ = env.step(actions[k])
+        if term or trunc:
+            env.reset()
+            ended += 1
+    assert "decide" not in vars(env.unwrapped.core.world)  # the timer was on the benchmark's env only
+    env.close()
+    assert ended >= 2  # single-lane episodes last 6-40 s: several end within 80 s
+    assert split["steps_per_episode"] == pytest.approx(steps / ended)
+    assert 0.0 < split["decide_share"] < 1.0 and 0.0 < split["reset_share"] < 1.0
+    assert split["decide_share"] + split["reset_share"] < 1.0
+    total = steps / split["steps_per_s"]  # [s]
+    assert split["us_per_reset"] == pytest.approx(1e6 * split["reset_share"] * total / ended)
+    assert total == pytest.approx(1e-6 * (steps * split["us_per_step"] + ended * split["us_per_reset"]))
+
+
 def test_bench_env_split_counts_every_autoreset_and_only_them():
     """``--split``'s accounting: the rows it times restarting are exactly the episodes that ended
     before the run's last step (an episode ending at step k restarts at step k + 1), counted here
