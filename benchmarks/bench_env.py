@@ -117,11 +117,16 @@ DEFAULT_CASES = [case for case in CASES if not case.endswith("_counter")]
 PEER_CASES = ("env_idm", "env_v1_idm")  # the cases SUMO's work equals (--peers adds them)
 
 
-def single_env_rate(steps: int, seed: int, env_id: str = "acc_gym/SingleLane-v0", **settings) -> float:
+def _single_env(steps: int, seed: int, env_id: str, settings: dict):
+    """``(env, actions)``: a fresh ``env_id`` reset with ``seed`` and ``steps`` small random
+    actions drawn from ``seed``, the work of every single-env case."""
     env = gym.make(env_id, **settings)
-    rng = np.random.default_rng(seed)
     env.reset(seed=seed)
-    actions = rng.uniform(-0.3, 0.3, (steps, 1)).astype(np.float32)
+    return env, np.random.default_rng(seed).uniform(-0.3, 0.3, (steps, 1)).astype(np.float32)
+
+
+def single_env_rate(steps: int, seed: int, env_id: str = "acc_gym/SingleLane-v0", **settings) -> float:
+    env, actions = _single_env(steps, seed, env_id, settings)
     t0 = time.perf_counter()
     for k in range(steps):
         _, _, term, trunc, _ = env.step(actions[k])
@@ -238,10 +243,7 @@ def single_env_split(steps: int, seed: int, env_id: str = "acc_gym/SingleLane-v0
     decide (:meth:`SingleLaneWorld.decide <acc_gym.simulation.single_lane.SingleLaneWorld.decide>`,
     wrapped on this env's world only), ``us_per_reset`` a reset's mean time and ``us_per_step``
     a step's without the resets [us]. The initial reset is outside the timed run."""
-    env = gym.make(env_id, **settings)
-    rng = np.random.default_rng(seed)
-    env.reset(seed=seed)
-    actions = rng.uniform(-0.3, 0.3, (steps, 1)).astype(np.float32)
+    env, actions = _single_env(steps, seed, env_id, settings)
     world = env.unwrapped.core.world
     decide = world.decide
     spent = [0.0, 0.0, 0]  # [s] in resets, [s] deciding, resets
