@@ -89,6 +89,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -375,7 +376,9 @@ def cavsandbox_column_rate() -> float:
 
 def _median(out: dict, key: str, runs: list) -> None:
     out[key] = float(np.median(runs))
-    out[key + "_runs"] = [round(x, 3) if key.endswith("_share") else round(x) for x in runs]
+    # a run too short for any episode to end has infinitely many steps per episode: kept as it is
+    out[key + "_runs"] = [x if not math.isfinite(x) else round(x, 3) if key.endswith("_share") else round(x)
+                          for x in runs]
 
 
 def paired_ratio(this_runs: list, other_runs: list) -> float:

@@ -115,6 +115,21 @@ def test_paired_ratio_is_the_median_of_each_repeats_ratio():
         bench_env.paired_ratio([1, 2], [1])
 
 
+def test_bench_env_medians_keep_a_run_where_no_episode_ended():
+    """A repeat too short for any episode to end reports infinitely many steps per episode; the
+    summary keeps it (it used to raise converting infinity to an integer) and the median is the
+    middle run's."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import bench_env
+
+    out = {}
+    bench_env._median(out, "vector_env_v1_steps_per_episode", [float("inf"), 70.4, 64.6])
+    assert out["vector_env_v1_steps_per_episode"] == 70.4
+    assert out["vector_env_v1_steps_per_episode_runs"] == [float("inf"), 70, 65]
+    bench_env._median(out, "env_v1_reset_share", [0.2468, 0.25])
+    assert out["env_v1_reset_share_runs"] == [0.247, 0.25]
+
+
 def test_bench_env_single_split_counts_every_reset_and_only_them():
     """The single env's ``--split``: the resets it times are the episodes that ended in the
     run (counted on a second env driven with the same seed and actions), the decisions are
