@@ -252,3 +252,39 @@ def law(kind, p, dt, two, v_now, v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2)
         return tyler(v_now, v, gap, v_lead, p[0], p[1], p[2], p[3], p[4], p[5], p[6])
     return acc(v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2, two, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7],
                p[8])
+
+
+# ---------------------------------------------------------------------------------------
+# Every surrounding slot of a world's step at once (acc_gym.drivers.slots.SlotDrivers.act_world)
+# ---------------------------------------------------------------------------------------
+
+NO_DRIVER, PROFILE, BASELINE = 0, 2, 3  # SlotDrivers.kind's codes this kernel runs (1, an MPC driver, it does not)
+
+
+@numba.njit(cache=True)
+def slot_laws(obs, slot_kind, law_kind, params, two, dt, profile, clock, a_des):  # pragma: no cover - compiled
+    """The desired accelerations of every surrounding vehicle of a world's step into
+    ``a_des[:, 1:]`` (``(B, S)`` [m/s^2]), read from the world's observation array ``obs``
+    (``(S, 8, B)``, :func:`acc_gym.simulation._world_kernel.observe_all`); slot ``s`` of scene
+    ``b`` is driver row ``r = (s - 1) B + b``. By ``slot_kind[r]``: :data:`BASELINE`, the
+    baseline model ``law_kind[r]`` (:data:`KINDS`) with parameters ``params[r]`` and ``two[r]``
+    (:func:`law`, no reaction delay: the scene as it is now); :data:`PROFILE`, the speed
+    profile row ``profile[r]`` played to its next sample ``min(clock[r] + 1, end)``, ``(that
+    speed - v) / dt``; anything else (no driver) 0. The same numbers as each model's ``*_rows``
+    kernel and :meth:`SlotDrivers._play_profiles <acc_gym.drivers.slots.SlotDrivers._play_profiles>`
+    (``tests/drivers/test_slots.py``)."""
+    S = obs.shape[0]
+    B = obs.shape[2]
+    last = profile.shape[1] - 1
+    for s in range(1, S):
+        for b in range(B):
+            r = (s - 1) * B + b
+            kind = slot_kind[r]
+            v = obs[s, 0, b]
+            if kind == BASELINE:
+                a_des[b, s] = law(law_kind[r], params[r], dt, two[r], v, v, obs[s, 2, b], obs[s, 3, b], obs[s, 4, b],
+                                  obs[s, 5, b], obs[s, 6, b], obs[s, 7, b])
+            elif kind == PROFILE:
+                a_des[b, s] = (profile[r, min(clock[r] + 1, last)] - v) / dt
+            else:
+                a_des[b, s] = 0.0

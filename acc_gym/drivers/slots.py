@@ -32,9 +32,11 @@ from dataclasses import fields
 
 import numpy as np
 
+from acc_gym.drivers import _baseline_kernels as _bk
 from acc_gym.drivers.base import Observation
 from acc_gym.drivers.baselines import MODELS
 from acc_gym.drivers.mpc import MPCDriver, MPCSettings
+from acc_gym.simulation import _world_kernel as _WK
 
 
 class SlotDrivers:
@@ -130,6 +132,8 @@ class SlotDrivers:
                 self._idle = np.flatnonzero(~is_mpc)
             elif not is_mpc.any() and not self._baseline.delayed():
                 self._path_cached = "baselines"
+                baseline = self.kind == 3  # every baseline row's law compiled (a MODELS class): one kernel call
+                self._compiled_laws = bool(np.all(self._baseline.law_kind[baseline] >= 0))
             else:
                 self._path_cached = "mixed"
         return self._path_cached
@@ -157,6 +161,28 @@ class SlotDrivers:
         # assign(), which restarts its clock (the tick costs as much as the rest of this bookkeeping)
         self.info = {"mode": mpc.mode.copy()}
         return out
+
+    def act_world(self, obs: np.ndarray, a_des: np.ndarray) -> None:
+        """:meth:`act_rows` for the surrounding slots of a world holding every one of them in
+        this object (slot ``s`` of scene ``b`` is row ``(s - 1) B + b``): reads the world's
+        observation array ``obs`` (``(S, 8, B)``) and writes the accelerations into
+        ``a_des[:, 1:]`` (``(B, S)``). When the rows hold baseline models without a reaction
+        delay, profiles and absent vehicles only (``drivers="idm"`` and the like) that is one
+        compiled call (:func:`acc_gym.drivers._baseline_kernels.slot_laws`: each row's law on
+        the observation as it is); otherwise the rows are gathered, :meth:`act_rows` run and
+        its outputs put back (:func:`acc_gym.simulation._world_kernel.slot_rows`,
+        :func:`~acc_gym.simulation._world_kernel.put_slots`). The same numbers either way
+        (``tests/drivers/test_slots.py``)."""
+        if self._path() == "baselines" and self._compiled_laws:
+            b = self._baseline
+            _bk.slot_laws(obs, self.kind, b.law_kind, b.law_params, b.law_two, self.dt, self._profile, self._clock,
+                          a_des)
+            self._clock += 1
+            self.info = {"mode": self._no_modes}
+            return
+        rows = np.empty((obs.shape[1], self.n))
+        _WK.slot_rows(obs, rows)
+        _WK.put_slots(self.act_rows(rows), a_des)
 
     def _act_rows_mpc_and_idle(self, rows: np.ndarray) -> np.ndarray:
         """:meth:`act` on observation rows when the rows hold MPC drivers, absent vehicles and
@@ -257,6 +283,12 @@ class BaselineRows:
         self._active: list[tuple[object, np.ndarray, bool]] | None = []  # (model, rows, delayed); None: recompute
         self._delayed = False
         self.rows = np.zeros(0, dtype=np.int64)
+        # each row's law as one compiled loop runs it (SlotDrivers.act_world): its model's code
+        # (_baseline_kernels.KINDS; -1 none), parameters (the model's _kernel_fields order, NaN after and
+        # for None) and ACC's Eq. (3) switch -- the numbers its group's arrays hold for that row
+        self.law_kind = np.full(self.n, -1, dtype=np.int64)
+        self.law_params = np.full((self.n, _bk.MAX_PARAMS), np.nan)
+        self.law_two = np.zeros(self.n, dtype=np.bool_)
 
     def assign(self, row: int, cls, params) -> None:
         """Row ``row`` is driven by model ``cls`` with ``params`` (one vehicle's) from now."""
@@ -280,6 +312,11 @@ class BaselineRows:
             self._models.append(cls(type(p)(**full, **dict(fixed)), n=self.n, dt=self.dt))
         self._group[row] = g
         self._delay[row] = model._delay.delay_steps
+        self.law_kind[row] = _bk.KINDS[cls.name] if MODELS.get(cls.name) is cls else -1  # -1: act_world not used
+        self.law_params[row] = np.nan
+        for i, name in enumerate(cls._kernel_fields):
+            self.law_params[row, i] = float(np.asarray(getattr(p, name), dtype=float).ravel()[0])
+        self.law_two[row] = getattr(p, "predecessors", 1) == 2
         if self._delay[row] + 1 > self._ring.shape[2]:
             self._ring = np.concatenate(
                 [self._ring, np.zeros(self._ring.shape[:2] + (int(self._delay[row]) + 1 - self._ring.shape[2],))], axis=2)
@@ -289,6 +326,7 @@ class BaselineRows:
         if self._group[row] >= 0:
             self._group[row] = -1
             self._delay[row] = 0
+            self.law_kind[row] = -1
             self._active = None
 
     def delayed(self) -> bool:

@@ -278,6 +278,23 @@ def finish(active, reward, bo, k, steps, terminate_on_violation, episode_return,
     return n_rows, n_ended
 
 
+@numba.njit(cache=True, error_model="numpy")
+def step_finish(a_des, present, x, v, a, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
+                sensor_range, F, I, obs_all, set_speed, tau1, grace, cfg, lead_prev, last_change, neg_since, fl, bo,
+                with_reward, a_comfort, w, terms, reward, steps, active, terminate_on_violation, episode_return,
+                terminated, truncated, rows, ended, width0, lane_widths, n_lanes, rec, time_gap, obs_range, v2v, low,
+                high, obs, f_low, f_high, obs32):  # pragma: no cover - compiled
+    """:func:`step` with a built-in reward, then :func:`finish`, in one call (the arguments of
+    both, each once): a step of :meth:`acc_gym.envs.core.EpisodeBatch.step` whose reward is
+    built in has nothing to do between them. Returns :func:`finish`'s counts."""
+    step(a_des, present, x, v, a, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
+         sensor_range, F, I, obs_all, set_speed, tau1, grace, cfg, lead_prev, last_change, neg_since, fl, bo,
+         with_reward, a_comfort, w, terms, reward, steps)
+    return finish(active, reward, bo, k, steps, terminate_on_violation, episode_return, terminated, truncated, rows,
+                  ended, fl, F, I, width0, lane_widths, n_lanes, rec, obs_all, set_speed, time_gap, obs_range, v2v,
+                  low, high, obs, f_low, f_high, obs32)
+
+
 REACH_BAND = 0.2  # [-] MarginReward's reach term: the score's band, 0 < Q < 0.2 Gapsafe (ScoringConfig.band_width)
 # the terms of margin_reward_rows() (MarginReward.TERMS), in info["rewards"] order
 MARGIN_TERMS = ("band", "efficiency", "speed", "response", "comfort", "jerk", "safety", "collision", "lag", "overspeed",

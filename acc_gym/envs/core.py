@@ -69,6 +69,9 @@ class EpisodeBatch:
         self.obs_bounds: tuple[np.ndarray, np.ndarray] | None = None  # (low, high) float arrays: see step()
         self.last_obs: np.ndarray | None = None
         self._no_bounds = np.zeros(1)
+        self._plan = None  # (reward_fn, obs_bounds, what step() needs of them): _step_plan()
+        self._scratch_buf = None  # step(arrays=False)'s arrays: _scratch()
+        self._rows_buf = np.empty((2, self.n), dtype=np.int64)  # finish()'s rows recorded and rows ended
         self._cfg = np.array([cfg.b0, cfg.b1, cfg.band_width, cfg.steady_dv, cfg.moving_speed, cfg.transient,
                               cfg.sensor_range, cfg.response_decel, cfg.stop_speed, cfg.lead_margin], dtype=float)
 
@@ -212,43 +215,60 @@ class EpisodeBatch:
         :attr:`obs_bounds` set, :attr:`last_obs` holds the observations after the step.
         With ``arrays=False`` (the single env, which reads :attr:`last_rows` and the drivers
         itself) ``info`` holds only ``"final"`` and, for a reward that is not built in,
-        ``"rewards"``: the per-step arrays are not assembled.
+        ``"rewards"``: the per-step arrays are not assembled, and with a built-in reward the
+        returned ``reward``, ``terminated``, ``truncated`` and :attr:`last_rows` are the core's
+        own arrays, which the next such step overwrites (read them before; :attr:`last_obs` is
+        always fresh, and so is everything a caller's ``reward_fn`` is given).
 
         The drivers decide in :meth:`SingleLaneWorld.decide
         <acc_gym.simulation.single_lane.SingleLaneWorld.decide>`; everything after them (the
-        world's move, the criteria, the default reward, the end of the step, the record and
-        the observations) is two compiled calls, :func:`acc_gym.envs._kernel.step` and
-        :func:`~acc_gym.envs._kernel.finish` -- the same kernels, in the same order, that
+        world's move, the criteria, a built-in reward, the end of the step, the record and
+        the observations) is one compiled call, :func:`acc_gym.envs._kernel.step_finish`
+        (with the caller's reward, computed between them: :func:`acc_gym.envs._kernel.step`
+        and :func:`~acc_gym.envs._kernel.finish`) -- the same kernels, in the same order, that
         :meth:`SingleLaneWorld.move` and the separate criteria, reward, settle, record and
         observe calls run (``tests/envs/test_env_fast_paths.py`` checks the two agree).
         """
         w = self.world
         n = self.n
+        (code, names, weights, a_comfort, grace, low, high, m0, extra, f_low, f_high, obs_range, v2v,
+         terminate) = self._step_plan()
         a_all = w.decide(a_des)
         F, I, obs_all = w.move_buffers()
-        cfg = self.config.scoring
-        grace = self._grace if self._grace is not None else self.tau1
-        fl = np.empty((K.N_FLOAT + 1, n))  # criteria rows, then the time (K.F_T)
-        bo = np.empty((K.N_BOOL, n), dtype=bool)
-        kind = type(self.reward_fn)
-        default = kind is CriteriaReward
-        margin = kind is MarginReward  # the -v1 ids' default
-        names = K.MARGIN_TERMS if margin else K.TERMS
-        terms_arr = np.empty((len(names), n))
-        reward = np.empty(n)
-        lat = w.lateral
-        K.step(a_all, w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1, lat.t_start, lat.duration,
-               w.lengths, w.width, float(w.road.lane_width), w.collided, w.sensor_range, F, I, obs_all,
-               self.set_speed, self.tau1, grace, self._cfg, self.lead_prev, self.last_change, self.neg_since,
-               fl, bo, K.REWARD_CRITERIA if default else K.REWARD_MARGIN if margin else K.REWARD_NONE,
-               float(cfg.a_x_comfort), self.reward_fn._w if (default or margin) else self._cfg, terms_arr, reward,
-               self.steps)
-        w.adopt(F, I, obs_all)
-        q, gs, collision, violation = fl[K.F_Q], fl[K.F_GS], bo[K.B_COLLISION], bo[K.B_VIOLATION]
-        if default or margin:
-            terms = None  # made below only for the arrays' info (the single env reads terms_arr)
+        if arrays or code == K.REWARD_NONE:  # arrays handed out (in info, or to the caller's reward): fresh ones
+            fl = np.empty((K.N_FLOAT + 1, n))  # criteria rows, then the time (K.F_T)
+            bo = np.empty((K.N_BOOL, n), dtype=bool)
+            terms_arr = np.empty((len(names), n))
+            reward = np.empty(n)
+            terminated, truncated = np.empty((2, n), dtype=bool)
+        else:  # the single env with a built-in reward reads them before the next step (last_rows): the core's own
+            fl, bo, terms_arr, reward, terminated, truncated = self._scratch(len(names))
+        rows, ended = self._rows_buf
+        if active is None:
+            active = ~self.done
+        if m0 is not None:  # obs_bounds set: the observations after the step, fresh (handed out)
+            obs = np.empty((n, m0), dtype=float if extra else np.float32)
+            obs32 = np.empty((n, m0 + extra), dtype=np.float32) if extra else obs  # version 1: the emitted one
         else:
-            ind = StepIndicators.from_rows(fl, bo, self.set_speed, self.tau1, cfg.a_x_comfort,
+            obs = obs32 = np.empty((0, 1), dtype=np.float32)
+        lat = w.lateral
+        terms = None  # made below only for the arrays' info (the single env reads terms_arr)
+        if code != K.REWARD_NONE:  # a built-in reward: the whole step in one compiled call
+            n_rows, n_ended = K.step_finish(
+                a_all, w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1, lat.t_start, lat.duration,
+                w.lengths, w.width, float(w.road.lane_width), w.collided, w.sensor_range, F, I, obs_all,
+                self.set_speed, self.tau1, grace, self._cfg, self.lead_prev, self.last_change, self.neg_since, fl, bo,
+                code, a_comfort, weights, terms_arr, reward, self.steps, active, terminate, self.episode_return,
+                terminated, truncated, rows, ended, self._ego_width, self.lane_width, self.n_lanes, self._rec_arr,
+                self.time_gap, obs_range, v2v, low, high, obs, f_low, f_high, obs32)
+            w.adopt(F, I, obs_all)
+        else:  # the caller's reward, from the criteria rows, between the two halves
+            K.step(a_all, w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1, lat.t_start, lat.duration,
+                   w.lengths, w.width, float(w.road.lane_width), w.collided, w.sensor_range, F, I, obs_all,
+                   self.set_speed, self.tau1, grace, self._cfg, self.lead_prev, self.last_change, self.neg_since,
+                   fl, bo, code, a_comfort, self._cfg, terms_arr, reward, self.steps)
+            w.adopt(F, I, obs_all)
+            ind = StepIndicators.from_rows(fl, bo, self.set_speed, self.tau1, a_comfort,
                                            steps_left=self.steps - w.k)
             reward, terms = self.reward_fn(ind)
             reward = np.asarray(reward, dtype=float)
@@ -256,42 +276,71 @@ class EpisodeBatch:
                 reward = np.broadcast_to(reward, (n,)).copy()
             terms_arr = None
             names = tuple(terms)
-        if active is None:
-            active = ~self.done
-        terminated, truncated = np.empty((2, n), dtype=bool)
-        rows, ended = np.empty((2, n), dtype=np.int64)
+            n_rows, n_ended = K.finish(active, reward, bo, w.k, self.steps, terminate, self.episode_return,
+                                       terminated, truncated, rows, ended, fl, F, I, self._ego_width, self.lane_width,
+                                       self.n_lanes, self._rec_arr, obs_all, self.set_speed, self.time_gap, obs_range,
+                                       v2v, low, high, obs, f_low, f_high, obs32)
+        self.last_obs = obs32 if obs32.shape[0] else None
+        # the step's criteria rows and, for the built-in rewards, their terms as one array (rows: names)
+        self.last_rows = (fl, bo, terms_arr)
+        self.last_term_names = names
+        if arrays:
+            if terms is None:
+                terms = dict(zip(names, terms_arr))
+            q = fl[K.F_Q]
+            info = {"t": fl[K.F_T], "q": q, "g": q, "gap_safe": fl[K.F_GS], "a_applied": fl[K.F_A],
+                    "violation": bo[K.B_VIOLATION], "modes": self.modes(), "fallbacks": self.fallbacks(),
+                    "rewards": terms}
+        else:
+            info = {} if terms_arr is not None else {"rewards": terms}
+        if n_ended:
+            ended = ended[:n_ended]
+            info["final"] = {int(r): self._final(int(r)) for r in ended}
+            self.done[ended] = True
+        else:
+            info["final"] = {}
+        return reward, terminated, truncated, info
+
+    def _step_plan(self) -> tuple:
+        """What a step needs that changes only with :attr:`reward_fn` and :attr:`obs_bounds`
+        (made again when either is replaced): the built-in reward's code, term names and
+        weights, the comfort bound, the proper-response grace per scene, the observation's
+        bounds (the v0 fields' part; ``m0`` None without bounds) and the features'."""
+        plan = self._plan
+        if plan is not None and plan[0] is self.reward_fn and plan[1] is self.obs_bounds:
+            return plan[2]
+        kind = type(self.reward_fn)
+        code = K.REWARD_CRITERIA if kind is CriteriaReward else K.REWARD_MARGIN if kind is MarginReward \
+            else K.REWARD_NONE  # MarginReward: the -v1 ids' default
+        cfg = self.config.scoring
         f_low, f_high = self._feature_bounds  # the safety-margin features' (empty for version 0)
         extra = f_low.shape[0]
         if self.obs_bounds is not None:
             low, high = self.obs_bounds
             m0 = low.shape[0] - extra  # the v0 fields, which the kernel writes
             low, high = low[:m0], high[:m0]
-            obs = np.empty((n, m0), dtype=float if extra else np.float32)
-            obs32 = np.empty((n, m0 + extra), dtype=np.float32) if extra else obs  # version 1: the emitted one
         else:
-            low = high = self._no_bounds
-            obs = obs32 = np.empty((0, 1), dtype=np.float32)
-        n_rows, n_ended = K.finish(active, reward, bo, w.k, self.steps, self.config.terminate_on_violation,
-                                   self.episode_return, terminated, truncated, rows, ended, fl, F, I, self._ego_width,
-                                   self.lane_width, self.n_lanes, self._rec_arr, obs_all, self.set_speed,
-                                   self.time_gap, float(self.config.sensor_range), bool(self.config.v2v), low, high,
-                                   obs, f_low, f_high, obs32)
-        self.last_obs = obs32 if obs32.shape[0] else None
-        # the step's criteria rows and, for the built-in rewards, their terms as one array (rows: names)
-        self.last_rows = (fl, bo, terms_arr)
-        self.last_term_names = names
-        ended = ended[:n_ended]
-        if arrays:
-            if terms is None:
-                terms = dict(zip(names, terms_arr))
-            info = {"t": fl[K.F_T], "q": q, "g": q, "gap_safe": gs, "a_applied": fl[K.F_A], "violation": violation,
-                    "modes": self.modes(), "fallbacks": self.fallbacks(), "rewards": terms}
-        else:
-            info = {} if terms_arr is not None else {"rewards": terms}
-        info["final"] = {int(r): self._final(int(r)) for r in ended} if n_ended else {}
-        if n_ended:
-            self.done[ended] = True
-        return reward, terminated, truncated, info
+            m0, low, high = None, self._no_bounds, self._no_bounds
+        # the proper-response grace per scene: the configured response time, or each scene's tau1 (the array
+        # reset_rows writes in place)
+        grace = self._grace if self._grace is not None else self.tau1
+        step = (code, K.MARGIN_TERMS if code == K.REWARD_MARGIN else K.TERMS,
+                self.reward_fn._w if code != K.REWARD_NONE else self._cfg, float(cfg.a_x_comfort), grace, low, high,
+                m0, extra, f_low, f_high, float(self.config.sensor_range), bool(self.config.v2v),
+                bool(self.config.terminate_on_violation))
+        self._plan = (self.reward_fn, self.obs_bounds, step)
+        return step
+
+    def _scratch(self, n_terms: int) -> tuple:
+        """The core's own per-step arrays for ``arrays=False`` (criteria rows, flags, reward terms,
+        reward, terminated, truncated): overwritten by every such step."""
+        buf = self._scratch_buf
+        if buf is None or buf[2].shape[0] != n_terms:
+            n = self.n
+            buf = self._scratch_buf = (np.empty((K.N_FLOAT + 1, n)), np.empty((K.N_BOOL, n), dtype=bool),
+                                       np.empty((n_terms, n)), np.empty(n), np.empty(n, dtype=bool),
+                                       np.empty(n, dtype=bool))
+        return buf
 
     def modes(self) -> np.ndarray:
         """The surrounding drivers' modes after the last step, ``(n, 2)`` (POV, POV2; -1: none)."""

@@ -162,6 +162,28 @@ def observe_all(v, a, lead, gap, lead2, gap2, sensor_range, out):  # pragma: no 
 
 
 @numba.njit(cache=True, error_model="numpy")
+def slot_rows(obs, rows):  # pragma: no cover - compiled
+    """The surrounding slots' observations as driver rows: ``rows[f, (s - 1) B + b] = obs[s, f, b]``
+    for ``s >= 1`` (``obs`` ``(S, 8, B)``, :func:`observe_all`'s; ``rows`` ``(8, (S - 1) B)``),
+    the layout of a :class:`~acc_gym.drivers.slots.SlotDrivers` holding every surrounding slot."""
+    S, m, B = obs.shape
+    for s in range(1, S):
+        for f in range(m):
+            for b in range(B):
+                rows[f, (s - 1) * B + b] = obs[s, f, b]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def put_slots(out, a_des):  # pragma: no cover - compiled
+    """The drivers' outputs by row back into the world's layout: ``a_des[b, s] = out[(s - 1) B + b]``
+    for ``s >= 1`` (:func:`slot_rows`'s inverse for ``a_des`` ``(B, S)``)."""
+    B, S = a_des.shape
+    for s in range(1, S):
+        for b in range(B):
+            a_des[b, s] = out[(s - 1) * B + b]
+
+
+@numba.njit(cache=True, error_model="numpy")
 def move(a_des, present, x, v, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
          sensor_range, F, I, obs, t):  # pragma: no cover - compiled
     """:meth:`~acc_gym.simulation.single_lane.SingleLaneWorld.move` and the next state's

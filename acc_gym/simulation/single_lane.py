@@ -155,7 +155,8 @@ class SingleLaneWorld:
     sensor_range: vehicles further ahead are not seen (``gap = inf`` in observations).
     a0: initial accelerations [m/s^2].
     joint: optional model acting for slots ``1 .. S-1`` at once, ``n == B (S - 1)`` with row
-        ``(s - 1) B + b`` for slot ``s`` of scene ``b`` and an ``act_rows`` method (a
+        ``(s - 1) B + b`` for slot ``s`` of scene ``b`` and an ``act_world(obs, a_des)`` method
+        that reads the observation array ``(S, 8, B)`` and writes ``a_des[:, 1:]`` (a
         :class:`~acc_gym.drivers.slots.SlotDrivers` over all surrounding slots, whose
         :class:`~acc_gym.drivers.slots.SlotView` s are then the ``drivers`` entries of those
         slots): one model call per step instead of one per slot.
@@ -179,9 +180,9 @@ class SingleLaneWorld:
             if model is not None and getattr(model, "n", None) != B:
                 raise ValueError(f"driver of slot {s} controls n={getattr(model, 'n', None)} vehicles; "
                                  f"it must control one per scene (n={B})")
-        if joint is not None and (getattr(joint, "n", None) != B * (S - 1) or not hasattr(joint, "act_rows")):
+        if joint is not None and (getattr(joint, "n", None) != B * (S - 1) or not hasattr(joint, "act_world")):
             raise ValueError(f"joint drivers must control n={B * (S - 1)} vehicles (every slot but the ego's) "
-                             f"and have act_rows, got n={getattr(joint, 'n', None)}")
+                             f"and have act_world, got n={getattr(joint, 'n', None)}")
         self.joint = joint
         self.x0 = _as_bs(x0, B, S, "x0")
         self.v0 = _as_bs(v0, B, S, "v0")
@@ -357,9 +358,7 @@ class SingleLaneWorld:
         joint = getattr(self, "joint", None)
         if joint is not None:  # every surrounding slot in one call: rows (s - 1) B + b
             self.observation_array(0)  # makes every slot's observations of this state, (S, 8, B)
-            o = self._obs
-            rows = np.ascontiguousarray(o[1:].transpose(1, 0, 2)).reshape(len(_K.OBS_FIELDS), -1)
-            a_des[:, 1:] = joint.act_rows(rows).reshape(self.S - 1, self.B).T
+            joint.act_world(self._obs, a_des)
         for s, model in enumerate(self.drivers):
             if joint is not None and s > 0:
                 break

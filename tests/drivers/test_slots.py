@@ -201,6 +201,75 @@ def test_rows_path_of_undelayed_baselines_absent_and_profile_rows_equals_each_dr
     assert paths[20:] == ["baselines"] * 10
 
 
+# undelayed settings of every baseline model (Gipps, GM, Pipes, Newell and Tyler perceive late by default)
+UNDELAYED = {"idm": {"v_desired": 22.0}, "gipps": {"tau": 0.2}, "gipps_theta": {"tau": 0.2, "theta": 0.1},
+             "gm": {"tau": 0.0, "m": 0.5}, "fuzzy": {}, "pipes": {"tau": 0.0}, "newell": {"tau": 0.2},
+             "tyler": {"tau": 0.0}, "acc": {}, "acc_two": {"k3": 1.0, "time_gap": 0.6, "predecessors": 2}}
+
+
+def world_obs(rng, S, B):
+    """A random observation array of a world (``(S, 8, B)``, observe_all's layout)."""
+    obs = np.empty((S, 8, B))
+    obs[:, 0] = rng.uniform(0.0, 30.0, (S, B))
+    obs[:, 1] = rng.uniform(-4.0, 2.0, (S, B))
+    obs[:, 2] = np.where(rng.random((S, B)) < 0.8, rng.uniform(0.5, 120.0, (S, B)), np.inf)
+    obs[:, 3] = rng.uniform(0.0, 30.0, (S, B))
+    obs[:, 4] = rng.uniform(-4.0, 2.0, (S, B))
+    obs[:, 5] = np.where(np.isfinite(obs[:, 2]), obs[:, 2] + rng.uniform(5.0, 40.0, (S, B)), np.inf)
+    obs[:, 6] = rng.uniform(0.0, 30.0, (S, B))
+    obs[:, 7] = rng.uniform(-4.0, 2.0, (S, B))
+    return obs
+
+
+@pytest.mark.parametrize("with_mpc", [False, True])
+def test_act_world_equals_act_rows_on_the_gathered_rows(with_mpc):
+    """A world's step of its surrounding slots (:meth:`SlotDrivers.act_world`, slot s of scene b
+    row (s - 1) B + b) gives bit for bit what :meth:`act_rows` gives on the rows gathered by hand,
+    written back to a_des[b, s] (column 0, the ego's, untouched): with every baseline model
+    undelayed, profiles and absent vehicles it is one compiled call (issue 35), and each row
+    equals its model run alone; with an MPC driver among them, the gathered rows' path. The
+    clocks (the profiles' next samples) advance alike over 25 steps and a restart of some rows."""
+    from acc_gym.drivers.baselines import MODELS
+
+    S, B = 3, 7
+    n = (S - 1) * B
+    profile = SpeedProfile.from_segments(10.0, [(1.0, 1.0), (-2.0, 1.5), (0.0, 5.0)])
+    specs = [DriverSpec(name.split("_")[0], dict(params)) for name, params in UNDELAYED.items()]
+    specs += [DriverSpec.from_profile(profile), None, DriverSpec("idm", {"time_gap": 1.1}), None]
+    if with_mpc:
+        from acc_gym.drivers.population import sample_driver_values
+
+        specs[-1] = DriverSpec("mpc", sample_driver_values(np.random.default_rng(2), 20.0))
+    assert len(specs) == n
+    world, rows_path = SlotDrivers(n, 0.2), SlotDrivers(n, 0.2)
+    for slot in (world, rows_path):
+        for r, spec in enumerate(specs):
+            slot.assign(r, spec)
+    alone = {r: MODELS[spec.model](spec.params_object(), n=1, dt=0.2) for r, spec in enumerate(specs)
+             if spec is not None and spec.model in MODELS}
+    rng = np.random.default_rng(11)
+    for k in range(25):
+        if k == 12:  # new episodes in some rows: their clocks restart
+            for slot in (world, rows_path):
+                slot.assign(10, DriverSpec.from_profile(profile))
+                slot.assign(0, DriverSpec("idm", {"v_desired": 30.0}))
+            alone[0] = MODELS["idm"](DriverSpec("idm", {"v_desired": 30.0}).params_object(), n=1, dt=0.2)
+        obs = world_obs(rng, S, B)
+        a_des = np.full((B, S), 7.0)
+        world.act_world(obs, a_des)
+        rows = np.ascontiguousarray(obs[1:].transpose(1, 0, 2)).reshape(8, n)
+        ref = rows_path.act_rows(rows)
+        assert world._path() == ("mixed" if with_mpc else "baselines")
+        assert np.all(a_des[:, 0] == 7.0)  # the ego's column is the caller's
+        assert np.array_equal(a_des[:, 1:].T.ravel(), ref), k
+        assert np.array_equal(world.info["mode"], rows_path.info["mode"])
+        seen = Observation(*rows)
+        for r, model in alone.items():
+            assert a_des[r % B, 1 + r // B] == model.act(seen.take([r]))[0], (k, r)
+        assert a_des[11 % B, 1 + 11 // B] == 0.0  # the absent vehicle
+    assert with_mpc or world._compiled_laws  # the compiled call ran
+
+
 def test_a_large_batch_uses_the_parallel_kernel_and_gives_the_same_numbers():
     """Vector envs of >= 128 scenes step their drivers with the parallel kernel: each row must still
     equal the driver stepped alone (what makes a large vector env equal single envs)."""
