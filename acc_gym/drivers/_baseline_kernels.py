@@ -258,7 +258,7 @@ def law(kind, p, dt, two, v_now, v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2)
 # Every surrounding slot of a world's step at once (acc_gym.drivers.slots.SlotDrivers.act_world)
 # ---------------------------------------------------------------------------------------
 
-NO_DRIVER, PROFILE, BASELINE = 0, 2, 3  # SlotDrivers.kind's codes this kernel runs (1, an MPC driver, it does not)
+PROFILE, BASELINE = 2, 3  # SlotDrivers.kind's codes this kernel runs (0 no driver: 0; 1, an MPC driver, it does not)
 
 
 @numba.njit(cache=True)

@@ -132,7 +132,7 @@ class SlotDrivers:
                 self._idle = np.flatnonzero(~is_mpc)
             elif not is_mpc.any() and not self._baseline.delayed():
                 self._path_cached = "baselines"
-                baseline = self.kind == 3  # every baseline row's law compiled (a MODELS class): one kernel call
+                baseline = self.kind == _bk.BASELINE  # every baseline row's law compiled (a MODELS class): one call
                 self._compiled_laws = bool(np.all(self._baseline.law_kind[baseline] >= 0))
             else:
                 self._path_cached = "mixed"
