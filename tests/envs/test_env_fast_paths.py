@@ -212,3 +212,30 @@ def test_single_env_action_fast_path_maps_like_the_kernel():
         env.step(np.array([0.1, 0.2]))
     env.step([0.5])  # a list takes check_actions
     assert seen[-1][0] == 0.5 * 2.5
+
+
+def test_arrays_handed_out_are_not_overwritten_by_the_next_step():
+    """The single env's core reuses its per-step arrays (``step(arrays=False)``), so what it
+    hands out must be copies or fresh: a vector env's rewards, flags and info arrays and a
+    single env's observations and infos, kept over further steps, still hold their step's
+    values (and a single env's keep equalling a fresh single env's of the same step)."""
+    vec = gymnasium.make_vec("acc_gym/SingleLane-v1", num_envs=3, vectorization_mode="vector_entry_point",
+                             drivers="idm")
+    vec.reset(seed=5)
+    kept = []
+    for _ in range(12):
+        obs, reward, term, trunc, info = vec.step(np.full((3, 1), 0.1, dtype=np.float32))
+        kept.append((obs, reward, term, trunc, info["q"], {k: v.copy() for k, v in (
+            ("obs", obs), ("reward", reward), ("term", term), ("trunc", trunc), ("q", info["q"]))}))
+    for obs, reward, term, trunc, q, copy in kept:
+        for value, name in ((obs, "obs"), (reward, "reward"), (term, "term"), (trunc, "trunc"), (q, "q")):
+            assert np.array_equal(value, copy[name], equal_nan=value.dtype.kind == "f"), name
+    single = [gymnasium.make("acc_gym/SingleLane-v1", drivers="idm") for _ in range(2)]
+    for env in single:
+        env.reset(seed=8)
+    steps = [single[0].step(np.array([0.1], dtype=np.float32)) for _ in range(12)]
+    for obs, reward, term, trunc, info in steps:
+        o2, r2, te2, tr2, i2 = single[1].step(np.array([0.1], dtype=np.float32))
+        assert np.array_equal(obs, o2) and reward == r2 and term == te2 and trunc == tr2
+        assert info["rewards"] == i2["rewards"] and info["q"] == i2["q"] and info["t"] == i2["t"]
+    assert len({id(obs) for obs, *_ in steps}) == len(steps)  # a fresh observation each step
