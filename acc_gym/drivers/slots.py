@@ -34,7 +34,7 @@ import numpy as np
 
 from acc_gym.drivers import _baseline_kernels as _bk
 from acc_gym.drivers.base import Observation
-from acc_gym.drivers.baselines import MODELS
+from acc_gym.drivers.baselines import _PLAIN, MODELS
 from acc_gym.drivers.mpc import MPCDriver, MPCSettings
 from acc_gym.simulation import _world_kernel as _WK
 
@@ -286,20 +286,43 @@ class BaselineRows:
         # each row's law as one compiled loop runs it (SlotDrivers.act_world): its model's code
         # (_baseline_kernels.KINDS; -1 none), parameters (the model's _kernel_fields order, NaN after and
         # for None) and ACC's Eq. (3) switch -- the numbers its group's arrays hold for that row
+        self._layouts: dict[type, tuple] = {}  # model class -> its parameters' (name, array-typed) fields
+        self._delays: dict[tuple, int] = {}  # (model class, tau) -> reaction delay [steps] (MODELS' classes)
         self.law_kind = np.full(self.n, -1, dtype=np.int64)
         self.law_params = np.full((self.n, _bk.MAX_PARAMS), np.nan)
         self.law_two = np.zeros(self.n, dtype=np.bool_)
 
     def assign(self, row: int, cls, params) -> None:
-        """Row ``row`` is driven by model ``cls`` with ``params`` (one vehicle's) from now."""
-        model = cls(params, n=1, dt=self.dt)  # validates, and gives this row's delay
-        p = model.params
-        # fields that cannot hold one number per row (declared without an array type: ACC's
-        # predecessors; or None: Gipps's theta=None) split the groups
-        per_row = {f.name: getattr(p, f.name) is not None and "ndarray" in str(f.type) for f in fields(p)}
-        fixed = tuple((name, getattr(p, name)) for name, yes in per_row.items() if not yes)
+        """Row ``row`` is driven by model ``cls`` with ``params`` (one vehicle's) from now.
+
+        Parameters of plain numbers (or None) for a model of
+        :data:`~acc_gym.drivers.baselines.MODELS` (a scenario's driver, at every reset) take a
+        shorter path: the row's reaction delay comes from a cache by (model, ``tau``) -- these
+        models' delay depends on ``tau`` and the step alone -- instead of building the model
+        (parameters are validated when their object is made); anything else builds the model
+        for one vehicle, which checks the sizes and gives the delay."""
+        layout = self._layouts.get(cls)
+        if layout is None:  # (field, declared with an array type) in the parameters' order
+            layout = self._layouts[cls] = tuple((f.name, "ndarray" in str(f.type)) for f in fields(cls.params_type))
+        p = params
+        raw = [(name, typed, getattr(p, name)) for name, typed in layout] if type(p) is cls.params_type else None
+        if raw is not None and MODELS.get(cls.name) is cls and all(type(v) in _PLAIN or v is None for *_, v in raw):
+            tau = getattr(p, "tau", None)
+            delay = self._delays.get((cls, tau))
+            if delay is None:
+                delay = self._delays[(cls, tau)] = cls(p, n=1, dt=self.dt)._delay.delay_steps
+            # fields that cannot hold one number per row (declared without an array type: ACC's
+            # predecessors; or None: Gipps's theta=None) split the groups
+            fixed = tuple((name, v) for name, typed, v in raw if not (typed and v is not None))
+            values = {name: float(v) for name, typed, v in raw if typed and v is not None}
+        else:
+            model = cls(params, n=1, dt=self.dt)  # validates, and gives this row's delay
+            p = model.params
+            delay = model._delay.delay_steps
+            per_row = {f.name: getattr(p, f.name) is not None and "ndarray" in str(f.type) for f in fields(p)}
+            fixed = tuple((name, getattr(p, name)) for name, yes in per_row.items() if not yes)
+            values = {name: float(np.asarray(getattr(p, name)).ravel()[0]) for name, yes in per_row.items() if yes}
         key = (cls, fixed)
-        values = {name: float(np.asarray(getattr(p, name)).ravel()[0]) for name, yes in per_row.items() if yes}
         g = self._keys.get(key)
         if g is not None:
             group_params = self._models[g].params
@@ -311,11 +334,12 @@ class BaselineRows:
             self._keys[key] = g
             self._models.append(cls(type(p)(**full, **dict(fixed)), n=self.n, dt=self.dt))
         self._group[row] = g
-        self._delay[row] = model._delay.delay_steps
+        self._delay[row] = delay
         self.law_kind[row] = _bk.KINDS[cls.name] if MODELS.get(cls.name) is cls else -1  # -1: act_world not used
-        self.law_params[row] = np.nan
-        for i, name in enumerate(cls._kernel_fields):
-            self.law_params[row, i] = float(np.asarray(getattr(p, name), dtype=float).ravel()[0])
+        law = [np.nan if v is None else float(v) if type(v) in _PLAIN else float(np.asarray(v, dtype=float).ravel()[0])
+               for v in (getattr(p, name) for name in cls._kernel_fields)]
+        self.law_params[row, :len(law)] = law
+        self.law_params[row, len(law):] = np.nan
         self.law_two[row] = getattr(p, "predecessors", 1) == 2
         if self._delay[row] + 1 > self._ring.shape[2]:
             self._ring = np.concatenate(

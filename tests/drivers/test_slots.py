@@ -1,5 +1,7 @@
 """Per-scene replaceable drivers: MPC rows re-parameterised in place, profiles, baselines."""
 
+from dataclasses import fields
+
 import numpy as np
 import pytest
 from scipy.linalg import solve_discrete_are
@@ -268,6 +270,40 @@ def test_act_world_equals_act_rows_on_the_gathered_rows(with_mpc):
             assert a_des[r % B, 1 + r // B] == model.act(seen.take([r]))[0], (k, r)
         assert a_des[11 % B, 1 + 11 // B] == 0.0  # the absent vehicle
     assert with_mpc or world._compiled_laws  # the compiled call ran
+
+
+def test_baseline_rows_short_assign_path_equals_building_the_model():
+    """:meth:`BaselineRows.assign` with plain-number parameters of a MODELS class (every reset's
+    case) reads the row's delay from a cache by (model, tau) instead of building the model: it
+    leaves every row exactly as the full path (taken by numpy numbers) does -- delays, groups,
+    the groups' parameter arrays and the compiled law's rows -- over models with and without a
+    reaction delay, re-assigned rows and a tau seen before; and a parameter array of two values
+    is still refused."""
+    from acc_gym.drivers.baselines import MODELS
+    from acc_gym.drivers.slots import BaselineRows
+
+    settings = [("idm", {"v_desired": 22.0}), ("idm", {"tau": 0.4}), ("gipps", {}), ("gipps", {"theta": 0.2}),
+                ("gm", {"m": 0.5}), ("fuzzy", {}), ("pipes", {"tau": 0.6}), ("newell", {}), ("tyler", {"tau": 0.0}),
+                ("acc", {"predecessors": 2}), ("idm", {"tau": 0.4, "a": 1.1}), ("gipps", {"tau": 0.6, "a": 2.0})]
+    short, full = BaselineRows(len(settings) + 1, 0.2), BaselineRows(len(settings) + 1, 0.2)
+    for row, (name, values) in enumerate(settings + [settings[0]]):
+        cls = MODELS[name]
+        short.assign(row, cls, cls.params_type(**values))
+        full.assign(row, cls, cls.params_type(**{k: np.float64(v) if type(v) is float else v for k, v in values.items()}))
+    short.assign(3, MODELS["idm"], MODELS["idm"].params_type(tau=0.4, s0=3.0))  # a cached tau, another row's
+    full.assign(3, MODELS["idm"], MODELS["idm"].params_type(tau=np.float64(0.4), s0=np.float64(3.0)))
+    assert len(short._delays) > 0  # the short path ran
+    for name in ("_delay", "_group", "law_kind", "law_two"):
+        assert np.array_equal(getattr(short, name), getattr(full, name)), name
+    assert np.array_equal(short.law_params, full.law_params, equal_nan=True)
+    assert short._delay.tolist()[:3] == [0, 2, 2] and set(short._keys) == set(full._keys)
+    for (key, g) in short._keys.items():
+        a, b = short._models[g].params, full._models[full._keys[key]].params
+        for f in fields(type(a)):
+            assert np.array_equal(np.asarray(getattr(a, f.name), float), np.asarray(getattr(b, f.name), float),
+                                  equal_nan=True), (key, f.name)
+    with pytest.raises(ValueError, match="2 values for n=1"):
+        short.assign(0, MODELS["idm"], MODELS["idm"].params_type(a=np.array([1.0, 2.0])))
 
 
 def test_a_large_batch_uses_the_parallel_kernel_and_gives_the_same_numbers():
