@@ -173,16 +173,29 @@ class SlotDrivers:
         its outputs put back (:func:`acc_gym.simulation._world_kernel.slot_rows`,
         :func:`~acc_gym.simulation._world_kernel.put_slots`). The same numbers either way
         (``tests/drivers/test_slots.py``)."""
-        if self._path() == "baselines" and self._compiled_laws:
-            b = self._baseline
-            _bk.slot_laws(obs, self.kind, b.law_kind, b.law_params, b.law_two, self.dt, self._profile, self._clock,
-                          a_des)
+        laws = self.compiled_laws()
+        if laws is not None:
+            _bk.slot_laws(obs, *laws, a_des)
             self._clock += 1
-            self.info = {"mode": self._no_modes}
             return
         rows = np.empty((obs.shape[1], self.n))
         _WK.slot_rows(obs, rows)
         _WK.put_slots(self.act_rows(rows), a_des)
+
+    def compiled_laws(self) -> tuple | None:
+        """When :meth:`act_world` is one compiled call (baseline models without a reaction delay,
+        profiles and absent vehicles, every law a :data:`~acc_gym.drivers.baselines.MODELS`
+        class's): the arguments of :func:`~acc_gym.drivers._baseline_kernels.slot_laws` after
+        the observation array (the rows' kinds, laws, parameters, switches, the step, the
+        profiles and the clocks, which the caller advances by one a step), and ``info`` is then
+        every row's mode -1, as after such a call; else None. A caller that runs the laws
+        itself over several steps (:meth:`SingleLaneWorld.coast
+        <acc_gym.simulation.single_lane.SingleLaneWorld.coast>`) takes them from here."""
+        if not (self._path() == "baselines" and self._compiled_laws):
+            return None
+        self.info = {"mode": self._no_modes}
+        b = self._baseline
+        return self.kind, b.law_kind, b.law_params, b.law_two, self.dt, self._profile, self._clock
 
     def _act_rows_mpc_and_idle(self, rows: np.ndarray) -> np.ndarray:
         """:meth:`act` on observation rows when the rows hold MPC drivers, absent vehicles and

@@ -226,13 +226,9 @@ def _presimulate_pov(vehicles: list, t_entry: float, dt: float) -> tuple[float, 
     for s, slot in enumerate(slots, start=1):
         slot.assign(0, arr.drivers[s][0])
     steps = int(math.ceil(t_entry / dt))
-    xs, vs = [world.x[0, 1]], [world.v[0, 1]]
-    for _ in range(steps):
-        world.step(0.0)
-        xs.append(world.x[0, 1])
-        vs.append(world.v[0, 1])
+    xs, vs = world.coast(steps, 0.0)  # one compiled call with baseline drivers
     times = np.arange(steps + 1) * dt
-    return float(np.interp(t_entry, times, xs)), float(np.interp(t_entry, times, vs))
+    return float(np.interp(t_entry, times, xs[:, 0, 1])), float(np.interp(t_entry, times, vs[:, 0, 1]))
 
 
 def _leader_lanes(kind: str, p: dict, suffix: str = "") -> tuple[int, LaneChange | None]:

@@ -351,6 +351,40 @@ class SingleLaneWorld:
         """
         self.move(self.decide(ego_a_des))
 
+    def coast(self, steps: int, ego_a_des: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Run ``steps`` steps with the ego asking for the constant ``ego_a_des`` [m/s^2] (as
+        :meth:`step` with it each step); returns every state's positions and speeds, ``(steps +
+        1, B, S)`` (row 0 the current state). When the surrounding drivers decide in one compiled
+        call (``joint``'s :meth:`~acc_gym.drivers.slots.SlotDrivers.compiled_laws`: baseline
+        models, profiles, absent vehicles) the whole run is one compiled call
+        (:func:`acc_gym.simulation._rollout_kernel.coast`), else :meth:`step` after step; the
+        same numbers either way (``tests/simulation/test_world_kernel.py``). A scenario's
+        pre-simulation of its vehicles (:mod:`acc_gym.scenarios.singlelane`) runs this."""
+        steps = int(steps)
+        if steps < 0:
+            raise ValueError(f"steps must be >= 0, got {steps!r}")
+        ego = float(ego_a_des)
+        check_finite("ego_a_des", ego)
+        xs, vs = np.empty((2, steps + 1, self.B, self.S))
+        joint = getattr(self, "joint", None)
+        laws = joint.compiled_laws() if (joint is not None and steps > 0) else None
+        if laws is not None:
+            from acc_gym.simulation import _rollout_kernel  # late: it joins the drivers' kernels
+
+            self.observation_array(0)
+            lat = self.lateral
+            F, I, obs = _rollout_kernel.coast(
+                steps, ego, self._obs.copy(), *laws, self.present, self.x, self.v, self._vp, self.dt, self.k, lat.y0,
+                lat.y1, lat.t_start, lat.duration, self.lengths, self.width, float(self.road.lane_width), self.collided,
+                self.sensor_range, xs, vs)
+            self.adopt(F, I, obs)
+            return xs, vs
+        xs[0], vs[0] = self.x, self.v
+        for i in range(steps):
+            self.step(ego)
+            xs[i + 1], vs[i + 1] = self.x, self.v
+        return xs, vs
+
     def decide(self, ego_a_des=None) -> np.ndarray:
         """Phase one of :meth:`step`: every model's desired acceleration ``(B, S)`` [m/s^2]
         from the current snapshot (slot 0 ``ego_a_des`` when given); nothing moves."""

@@ -1,0 +1,55 @@
+"""A world with baseline drivers run for several steps in one compiled call.
+
+:meth:`SingleLaneWorld.coast <acc_gym.simulation.single_lane.SingleLaneWorld.coast>` runs
+its world this way when every surrounding driver's decision is one compiled call
+(:meth:`SlotDrivers.act_world <acc_gym.drivers.slots.SlotDrivers.act_world>`'s
+:func:`~acc_gym.drivers._baseline_kernels.slot_laws`: baseline models without a reaction
+delay, profiles, absent vehicles): each step is that call, the ego's constant desired
+acceleration, and the world's :func:`~acc_gym.simulation._world_kernel.move` -- the kernels
+of a Python step, in its order, so the same numbers (``tests/simulation/test_world_kernel.py``).
+Imported on first use (it joins the drivers' and the world's kernels).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from acc_gym.drivers._baseline_kernels import slot_laws
+from acc_gym.simulation._world_kernel import move
+
+
+@numba.njit(cache=True, error_model="numpy")
+def coast(steps, ego_a, obs, slot_kind, law_kind, params, two, law_dt, profile, clock, present, x, v, vp, dt, k, y0,
+          y1, t_start, duration, lengths, width, lane_width, collided, sensor_range, xs, vs):  # pragma: no cover
+    """Run ``steps`` steps from the state ``x``, ``v`` (``(B, S)``) whose observation array is
+    ``obs``, the ego asking for ``ego_a`` [m/s^2]; ``xs``, ``vs`` ``(steps + 1, B, S)`` get every
+    state's positions and speeds (row 0 the current one), ``clock`` and ``k`` advance by
+    ``steps``, ``collided`` is updated. Returns the last step's ``(F, I, obs)`` for the world to
+    adopt (:meth:`SingleLaneWorld.move_buffers <acc_gym.simulation.single_lane.SingleLaneWorld.move_buffers>`'s
+    layout)."""
+    B, S = x.shape
+    xs[0] = x
+    vs[0] = v
+    F = np.empty((8, B, S))
+    I = np.empty((2, B, S), dtype=np.int64)
+    nxt = np.empty_like(obs)
+    a_des = np.empty((B, S))
+    t = np.empty(B)
+    for i in range(steps):
+        slot_laws(obs, slot_kind, law_kind, params, two, law_dt, profile, clock, a_des)
+        for b in range(B):
+            a_des[b, 0] = ego_a
+        for r in range(clock.shape[0]):
+            clock[r] += 1
+        F = np.empty((8, B, S))
+        I = np.empty((2, B, S), dtype=np.int64)
+        nxt = np.empty_like(obs)
+        move(a_des, present, x, v, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
+             sensor_range, F, I, nxt, t)
+        x = F[0]
+        v = F[1]
+        obs = nxt
+        xs[i + 1] = x
+        vs[i + 1] = v
+    return F, I, obs
