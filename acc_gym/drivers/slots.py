@@ -296,11 +296,11 @@ class BaselineRows:
         self._active: list[tuple[object, np.ndarray, bool]] | None = []  # (model, rows, delayed); None: recompute
         self._delayed = False
         self.rows = np.zeros(0, dtype=np.int64)
+        self._layouts: dict[type, tuple] = {}  # model class -> its parameters' (name, array-typed) fields
+        self._delays: dict[tuple, int] = {}  # (model class, tau) -> reaction delay [steps] (MODELS' classes)
         # each row's law as one compiled loop runs it (SlotDrivers.act_world): its model's code
         # (_baseline_kernels.KINDS; -1 none), parameters (the model's _kernel_fields order, NaN after and
         # for None) and ACC's Eq. (3) switch -- the numbers its group's arrays hold for that row
-        self._layouts: dict[type, tuple] = {}  # model class -> its parameters' (name, array-typed) fields
-        self._delays: dict[tuple, int] = {}  # (model class, tau) -> reaction delay [steps] (MODELS' classes)
         self.law_kind = np.full(self.n, -1, dtype=np.int64)
         self.law_params = np.full((self.n, _bk.MAX_PARAMS), np.nan)
         self.law_two = np.zeros(self.n, dtype=np.bool_)
@@ -318,8 +318,9 @@ class BaselineRows:
         if layout is None:  # (field, declared with an array type) in the parameters' order
             layout = self._layouts[cls] = tuple((f.name, "ndarray" in str(f.type)) for f in fields(cls.params_type))
         p = params
+        compiled = MODELS.get(cls.name) is cls  # a package model (not a subclass): its law is compiled by code
         raw = [(name, typed, getattr(p, name)) for name, typed in layout] if type(p) is cls.params_type else None
-        if raw is not None and MODELS.get(cls.name) is cls and all(type(v) in _PLAIN or v is None for *_, v in raw):
+        if raw is not None and compiled and all(type(v) in _PLAIN or v is None for *_, v in raw):
             tau = getattr(p, "tau", None)
             delay = self._delays.get((cls, tau))
             if delay is None:
@@ -348,7 +349,7 @@ class BaselineRows:
             self._models.append(cls(type(p)(**full, **dict(fixed)), n=self.n, dt=self.dt))
         self._group[row] = g
         self._delay[row] = delay
-        self.law_kind[row] = _bk.KINDS[cls.name] if MODELS.get(cls.name) is cls else -1  # -1: act_world not used
+        self.law_kind[row] = _bk.KINDS[cls.name] if compiled else -1  # -1: act_world not used
         law = [np.nan if v is None else float(v) if type(v) in _PLAIN else float(np.asarray(v, dtype=float).ravel()[0])
                for v in (getattr(p, name) for name in cls._kernel_fields)]
         self.law_params[row, :len(law)] = law
