@@ -18,6 +18,7 @@ import math
 import numba
 import numpy as np
 
+from acc_gym.drivers._baseline_kernels import slot_laws
 from acc_gym.evaluation.scoring import SPEED_TOL
 from acc_gym.envs import observation as _O
 from acc_gym.simulation import _world_kernel as _W
@@ -293,6 +294,42 @@ def step_finish(a_des, present, x, v, a, vp, dt, k, y0, y1, t_start, duration, l
     return finish(active, reward, bo, k, steps, terminate_on_violation, episode_return, terminated, truncated, rows,
                   ended, fl, F, I, width0, lane_widths, n_lanes, rec, obs_all, set_speed, time_gap, obs_range, v2v,
                   low, high, obs, f_low, f_high, obs32)
+
+
+
+@numba.njit(cache=True, error_model="numpy")
+def laws_step_finish(ego_a, obs_now, slot_kind, law_kind, params, two, law_dt, profile, clock, present, x, v, a, vp,
+                     dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided, sensor_range, F, I,
+                     obs_all, set_speed, tau1, grace, cfg, lead_prev, last_change, neg_since, fl, bo, with_reward,
+                     a_comfort, w, terms, reward, steps, active, terminate_on_violation, episode_return, terminated,
+                     truncated, rows, ended, width0, lane_widths, n_lanes, rec, time_gap, obs_range, v2v, low, high,
+                     obs, f_low, f_high, obs32):  # pragma: no cover - compiled
+    """A whole step of a world whose surrounding drivers decide in one compiled call
+    (:meth:`SlotDrivers.compiled_laws <acc_gym.drivers.slots.SlotDrivers.compiled_laws>`:
+    baseline models without a reaction delay, profiles, absent vehicles) with a built-in
+    reward: the drivers' :func:`~acc_gym.drivers._baseline_kernels.slot_laws` on the current
+    observation array ``obs_now`` (``(S, 8, B)``), the ego's desired accelerations ``ego_a``
+    (``(B,)`` [m/s^2]) in slot 0, the drivers' clocks advanced by one, then
+    :func:`step_finish` -- what :meth:`SingleLaneWorld.decide
+    <acc_gym.simulation.single_lane.SingleLaneWorld.decide>` and :func:`step_finish` do, in
+    their order, so the same numbers. Returns ``(-1, -1)`` and changes nothing when an ego
+    acceleration is not finite (the caller raises, naming it); else :func:`finish`'s counts."""
+    B = x.shape[0]
+    S = x.shape[1]
+    for b in range(B):
+        if not math.isfinite(ego_a[b]):
+            return -1, -1
+    a_des = np.empty((B, S))
+    slot_laws(obs_now, slot_kind, law_kind, params, two, law_dt, profile, clock, a_des)
+    for b in range(B):
+        a_des[b, 0] = ego_a[b]
+    for r in range(clock.shape[0]):
+        clock[r] += 1
+    return step_finish(a_des, present, x, v, a, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width,
+                       collided, sensor_range, F, I, obs_all, set_speed, tau1, grace, cfg, lead_prev, last_change,
+                       neg_since, fl, bo, with_reward, a_comfort, w, terms, reward, steps, active,
+                       terminate_on_violation, episode_return, terminated, truncated, rows, ended, width0,
+                       lane_widths, n_lanes, rec, time_gap, obs_range, v2v, low, high, obs, f_low, f_high, obs32)
 
 
 REACH_BAND = 0.2  # [-] MarginReward's reach term: the score's band, 0 < Q < 0.2 Gapsafe (ScoringConfig.band_width)

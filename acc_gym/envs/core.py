@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from acc_gym._validation import check_finite
 from acc_gym.drivers.slots import SlotDrivers, SlotView
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.config import EnvConfig
@@ -233,7 +234,12 @@ class EpisodeBatch:
         n = self.n
         (code, names, weights, a_comfort, grace, low, high, m0, extra, f_low, f_high, obs_range, v2v,
          terminate) = self._step_plan()
-        a_all = w.decide(a_des)
+        laws = None
+        if code != K.REWARD_NONE and type(a_des) is np.ndarray and a_des.dtype == np.float64 and a_des.shape == (n,):
+            joint = w.joint
+            laws = joint.compiled_laws() if joint is not None else None  # the drivers' decision joins the step
+        if laws is None:
+            a_all = w.decide(a_des)
         F, I, obs_all = w.move_buffers()
         if arrays or code == K.REWARD_NONE:  # arrays handed out (in info, or to the caller's reward): fresh ones
             fl = np.empty((K.N_FLOAT + 1, n))  # criteria rows, then the time (K.F_T)
@@ -253,7 +259,19 @@ class EpisodeBatch:
             obs = obs32 = np.empty((0, 1), dtype=np.float32)
         lat = w.lateral
         terms = None  # made below only for the arrays' info (the single env reads terms_arr)
-        if code != K.REWARD_NONE:  # a built-in reward: the whole step in one compiled call
+        if laws is not None:  # drivers of one compiled call and a built-in reward: decide and step in one call
+            w.observation_array(0)  # every slot's observations of the state, (S, 8, B), made if not yet
+            n_rows, n_ended = K.laws_step_finish(
+                a_des, w._obs, *laws, w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1,
+                lat.t_start, lat.duration, w.lengths, w.width, float(w.road.lane_width), w.collided, w.sensor_range, F,
+                I, obs_all, self.set_speed, self.tau1, grace, self._cfg, self.lead_prev, self.last_change,
+                self.neg_since, fl, bo, code, a_comfort, weights, terms_arr, reward, self.steps, active, terminate,
+                self.episode_return, terminated, truncated, rows, ended, self._ego_width, self.lane_width,
+                self.n_lanes, self._rec_arr, self.time_gap, obs_range, v2v, low, high, obs, f_low, f_high, obs32)
+            if n_rows < 0:
+                check_finite("ego_a_des", a_des)  # raises, naming the value, as decide() does (nothing moved)
+            w.adopt(F, I, obs_all)
+        elif code != K.REWARD_NONE:  # a built-in reward: the whole step in one compiled call
             n_rows, n_ended = K.step_finish(
                 a_all, w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1, lat.t_start, lat.duration,
                 w.lengths, w.width, float(w.road.lane_width), w.collided, w.sensor_range, F, I, obs_all,

@@ -134,12 +134,18 @@ def reference_step(core, a_des, active=None):
                                       "violation": bo[K.B_VIOLATION], "rewards": terms, "final": final}
 
 
-@pytest.mark.parametrize("env_id", ["acc_gym/SingleLane-v0", "acc_gym/NCAP-v0"])
-def test_fused_core_step_equals_the_separate_kernels(env_id):
-    """The core's two-call step (``_kernel.step`` + ``_kernel.finish``) equals the world's
-    step followed by the separate kernels, bit for bit, over episodes and restarts of 6 scenes."""
-    cores = [gymnasium.make_vec(env_id, num_envs=6, vectorization_mode="vector_entry_point").unwrapped.core
-             for _ in range(2)]
+@pytest.mark.parametrize("env_id, settings, drivers_in_kernel", [
+    ("acc_gym/SingleLane-v0", {}, False),  # MPC drivers: they decide in Python, then _kernel.step_finish
+    ("acc_gym/NCAP-v0", {}, True),  # the targets' profiles: _kernel.laws_step_finish decides and steps
+    ("acc_gym/SingleLane-v0", {"drivers": "idm"}, True),  # baseline models: likewise
+], ids=["singlelane-mpc", "ncap-profiles", "singlelane-idm"])
+def test_fused_core_step_equals_the_separate_kernels(env_id, settings, drivers_in_kernel):
+    """The core's step in one compiled call (``_kernel.step_finish`` after the drivers decided,
+    or ``_kernel.laws_step_finish`` with the drivers' laws inside it) equals the world's step
+    (its ``decide``, then its separate kernels) followed by the separate criteria, reward,
+    settle, record and observe kernels, bit for bit, over episodes and restarts of 6 scenes."""
+    cores = [gymnasium.make_vec(env_id, num_envs=6, vectorization_mode="vector_entry_point",
+                                **settings).unwrapped.core for _ in range(2)]
     rngs = [[np.random.default_rng(s) for s in range(6)] for _ in range(2)]
     for core, r in zip(cores, rngs):
         core.reset_rows(range(6), r)
@@ -148,6 +154,7 @@ def test_fused_core_step_equals_the_separate_kernels(env_id):
     n_final = 0
     for _ in range(150):
         a = act.uniform(-6.0, 3.0, 6)
+        assert (fused.world.joint.compiled_laws() is not None) == drivers_in_kernel  # the path under test
         r1, te1, tr1, i1 = fused.step(a)
         o2, r2, te2, tr2, i2 = reference_step(ref, a)
         assert np.array_equal(fused.last_obs, o2)
@@ -239,3 +246,23 @@ def test_arrays_handed_out_are_not_overwritten_by_the_next_step():
         assert np.array_equal(obs, o2) and reward == r2 and term == te2 and trunc == tr2
         assert info["rewards"] == i2["rewards"] and info["q"] == i2["q"] and info["t"] == i2["t"]
     assert len({id(obs) for obs, *_ in steps}) == len(steps)  # a fresh observation each step
+
+
+def test_a_nan_ego_acceleration_stops_the_fused_step_before_anything_moves():
+    """With the drivers' laws inside the step's compiled call, a non-finite desired ego
+    acceleration raises the world's error naming it, and leaves the scenes as they were
+    (positions, speeds, step counters, the drivers' clocks)."""
+    core = gymnasium.make_vec("acc_gym/SingleLane-v0", num_envs=3, vectorization_mode="vector_entry_point",
+                              drivers="idm").unwrapped.core
+    core.reset_rows(range(3), [np.random.default_rng(s) for s in range(3)])
+    core.step(np.zeros(3))
+    joint = core.world.joint
+    assert joint.compiled_laws() is not None
+    before = [core.world.x.copy(), core.world.v.copy(), core.world.k.copy(), joint._clock.copy()]
+    with pytest.raises(ValueError, match=r"ego_a_des must be finite.*nan"):
+        core.step(np.array([0.5, np.nan, 0.0]))
+    after = [core.world.x, core.world.v, core.world.k, joint._clock]
+    assert all(np.array_equal(b, a) for b, a in zip(before, after))
+    core.step(np.zeros(3))  # and the next finite step runs
+    assert np.array_equal(core.world.k, before[2] + 1)
+
