@@ -296,7 +296,6 @@ def step_finish(a_des, present, x, v, a, vp, dt, k, y0, y1, t_start, duration, l
                   low, high, obs, f_low, f_high, obs32)
 
 
-
 @numba.njit(cache=True, error_model="numpy")
 def laws_step_finish(ego_a, obs_now, slot_kind, law_kind, params, two, law_dt, profile, clock, present, x, v, a, vp,
                      dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided, sensor_range, F, I,

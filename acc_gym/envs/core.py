@@ -226,9 +226,15 @@ class EpisodeBatch:
         world's move, the criteria, a built-in reward, the end of the step, the record and
         the observations) is one compiled call, :func:`acc_gym.envs._kernel.step_finish`
         (with the caller's reward, computed between them: :func:`acc_gym.envs._kernel.step`
-        and :func:`~acc_gym.envs._kernel.finish`) -- the same kernels, in the same order, that
-        :meth:`SingleLaneWorld.move` and the separate criteria, reward, settle, record and
-        observe calls run (``tests/envs/test_env_fast_paths.py`` checks the two agree).
+        and :func:`~acc_gym.envs._kernel.finish`). When the surrounding drivers decide in one
+        compiled call themselves (baseline models without a reaction delay, profiles, absent
+        vehicles: :meth:`SlotDrivers.compiled_laws
+        <acc_gym.drivers.slots.SlotDrivers.compiled_laws>`) and the reward is built in, their
+        decision joins that call too (:func:`acc_gym.envs._kernel.laws_step_finish`; ``a_des``
+        a float64 array ``(n,)``). These are the same kernels, in the same order, that
+        :meth:`SingleLaneWorld.decide`, :meth:`SingleLaneWorld.move` and the separate
+        criteria, reward, settle, record and observe calls run
+        (``tests/envs/test_env_fast_paths.py`` checks the two agree).
         """
         w = self.world
         n = self.n
@@ -236,7 +242,7 @@ class EpisodeBatch:
          terminate) = self._step_plan()
         laws = None
         if code != K.REWARD_NONE and type(a_des) is np.ndarray and a_des.dtype == np.float64 and a_des.shape == (n,):
-            joint = w.joint
+            joint = getattr(w, "joint", None)
             laws = joint.compiled_laws() if joint is not None else None  # the drivers' decision joins the step
         if laws is None:
             a_all = w.decide(a_des)
