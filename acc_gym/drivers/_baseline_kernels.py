@@ -288,3 +288,20 @@ def slot_laws(obs, slot_kind, law_kind, params, two, dt, profile, clock, a_des):
                 a_des[b, s] = (profile[r, min(clock[r] + 1, last)] - v) / dt
             else:
                 a_des[b, s] = 0.0
+
+
+@numba.njit(cache=True)
+def decide_world(obs, slot_kind, law_kind, params, two, dt, profile, clock, ego_a, a_des):  # pragma: no cover
+    """A world's whole decision when its surrounding drivers are :func:`slot_laws`'s: their
+    accelerations into ``a_des[:, 1:]``, the ego's desired accelerations ``ego_a`` (``(B,)``
+    [m/s^2]) into ``a_des[:, 0]``, and every row's clock advanced by one -- what
+    :meth:`SingleLaneWorld.decide <acc_gym.simulation.single_lane.SingleLaneWorld.decide>`
+    does with :meth:`SlotDrivers.act_world <acc_gym.drivers.slots.SlotDrivers.act_world>`, for
+    the compiled callers that step such a world (:func:`acc_gym.envs._kernel.laws_step_finish`,
+    :func:`acc_gym.simulation._rollout_kernel.coast`)."""
+    slot_laws(obs, slot_kind, law_kind, params, two, dt, profile, clock, a_des)
+    for b in range(a_des.shape[0]):
+        a_des[b, 0] = ego_a[b]
+    for r in range(clock.shape[0]):
+        clock[r] += 1
+

@@ -18,7 +18,7 @@ import math
 import numba
 import numpy as np
 
-from acc_gym.drivers._baseline_kernels import slot_laws
+from acc_gym.drivers._baseline_kernels import decide_world
 from acc_gym.evaluation.scoring import SPEED_TOL
 from acc_gym.envs import observation as _O
 from acc_gym.simulation import _world_kernel as _W
@@ -306,9 +306,9 @@ def laws_step_finish(ego_a, obs_now, slot_kind, law_kind, params, two, law_dt, p
     """A whole step of a world whose surrounding drivers decide in one compiled call
     (:meth:`SlotDrivers.compiled_laws <acc_gym.drivers.slots.SlotDrivers.compiled_laws>`:
     baseline models without a reaction delay, profiles, absent vehicles) with a built-in
-    reward: the drivers' :func:`~acc_gym.drivers._baseline_kernels.slot_laws` on the current
-    observation array ``obs_now`` (``(S, 8, B)``), the ego's desired accelerations ``ego_a``
-    (``(B,)`` [m/s^2]) in slot 0, the drivers' clocks advanced by one, then
+    reward: :func:`~acc_gym.drivers._baseline_kernels.decide_world` on the current
+    observation array ``obs_now`` (``(S, 8, B)``) with the ego's desired accelerations ``ego_a``
+    (``(B,)`` [m/s^2]), then
     :func:`step_finish` -- what :meth:`SingleLaneWorld.decide
     <acc_gym.simulation.single_lane.SingleLaneWorld.decide>` and :func:`step_finish` do, in
     their order, so the same numbers. Returns ``(-1, -1)`` and changes nothing when an ego
@@ -319,11 +319,7 @@ def laws_step_finish(ego_a, obs_now, slot_kind, law_kind, params, two, law_dt, p
         if not math.isfinite(ego_a[b]):
             return -1, -1
     a_des = np.empty((B, S))
-    slot_laws(obs_now, slot_kind, law_kind, params, two, law_dt, profile, clock, a_des)
-    for b in range(B):
-        a_des[b, 0] = ego_a[b]
-    for r in range(clock.shape[0]):
-        clock[r] += 1
+    decide_world(obs_now, slot_kind, law_kind, params, two, law_dt, profile, clock, ego_a, a_des)
     return step_finish(a_des, present, x, v, a, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width,
                        collided, sensor_range, F, I, obs_all, set_speed, tau1, grace, cfg, lead_prev, last_change,
                        neg_since, fl, bo, with_reward, a_comfort, w, terms, reward, steps, active,

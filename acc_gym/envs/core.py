@@ -265,26 +265,22 @@ class EpisodeBatch:
             obs = obs32 = np.empty((0, 1), dtype=np.float32)
         lat = w.lateral
         terms = None  # made below only for the arrays' info (the single env reads terms_arr)
-        if laws is not None:  # drivers of one compiled call and a built-in reward: decide and step in one call
-            w.observation_array(0)  # every slot's observations of the state, (S, 8, B), made if not yet
-            n_rows, n_ended = K.laws_step_finish(
-                a_des, w._obs, *laws, w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1,
-                lat.t_start, lat.duration, w.lengths, w.width, float(w.road.lane_width), w.collided, w.sensor_range, F,
-                I, obs_all, self.set_speed, self.tau1, grace, self._cfg, self.lead_prev, self.last_change,
-                self.neg_since, fl, bo, code, a_comfort, weights, terms_arr, reward, self.steps, active, terminate,
-                self.episode_return, terminated, truncated, rows, ended, self._ego_width, self.lane_width,
-                self.n_lanes, self._rec_arr, self.time_gap, obs_range, v2v, low, high, obs, f_low, f_high, obs32)
-            if n_rows < 0:
-                check_finite("ego_a_des", a_des)  # raises, naming the value, as decide() does (nothing moved)
-            w.adopt(F, I, obs_all)
-        elif code != K.REWARD_NONE:  # a built-in reward: the whole step in one compiled call
-            n_rows, n_ended = K.step_finish(
-                a_all, w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1, lat.t_start, lat.duration,
-                w.lengths, w.width, float(w.road.lane_width), w.collided, w.sensor_range, F, I, obs_all,
-                self.set_speed, self.tau1, grace, self._cfg, self.lead_prev, self.last_change, self.neg_since, fl, bo,
-                code, a_comfort, weights, terms_arr, reward, self.steps, active, terminate, self.episode_return,
-                terminated, truncated, rows, ended, self._ego_width, self.lane_width, self.n_lanes, self._rec_arr,
-                self.time_gap, obs_range, v2v, low, high, obs, f_low, f_high, obs32)
+        if code != K.REWARD_NONE:  # a built-in reward: the whole step in one compiled call
+            # step_finish's arguments after the drivers' accelerations (laws_step_finish's after the laws)
+            world_and_scenes = (
+                w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1, lat.t_start, lat.duration, w.lengths,
+                w.width, float(w.road.lane_width), w.collided, w.sensor_range, F, I, obs_all, self.set_speed,
+                self.tau1, grace, self._cfg, self.lead_prev, self.last_change, self.neg_since, fl, bo, code, a_comfort,
+                weights, terms_arr, reward, self.steps, active, terminate, self.episode_return, terminated, truncated,
+                rows, ended, self._ego_width, self.lane_width, self.n_lanes, self._rec_arr, self.time_gap, obs_range,
+                v2v, low, high, obs, f_low, f_high, obs32)
+            if laws is not None:  # drivers of one compiled call too: they decide inside it
+                w.observation_array(0)  # every slot's observations of the state, (S, 8, B), made if not yet
+                n_rows, n_ended = K.laws_step_finish(a_des, w._obs, *laws, *world_and_scenes)
+                if n_rows < 0:
+                    check_finite("ego_a_des", a_des)  # raises, naming the value, as decide() does (nothing moved)
+            else:
+                n_rows, n_ended = K.step_finish(a_all, *world_and_scenes)
             w.adopt(F, I, obs_all)
         else:  # the caller's reward, from the criteria rows, between the two halves
             K.step(a_all, w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1, lat.t_start, lat.duration,

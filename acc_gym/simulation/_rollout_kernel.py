@@ -4,8 +4,9 @@
 its world this way when every surrounding driver's decision is one compiled call
 (:meth:`SlotDrivers.act_world <acc_gym.drivers.slots.SlotDrivers.act_world>`'s
 :func:`~acc_gym.drivers._baseline_kernels.slot_laws`: baseline models without a reaction
-delay, profiles, absent vehicles): each step is that call, the ego's constant desired
-acceleration, and the world's :func:`~acc_gym.simulation._world_kernel.move` -- the kernels
+delay, profiles, absent vehicles): each step is
+:func:`~acc_gym.drivers._baseline_kernels.decide_world` with the ego's constant desired
+acceleration, then the world's :func:`~acc_gym.simulation._world_kernel.move` -- the kernels
 of a Python step, in its order, so the same numbers (``tests/simulation/test_world_kernel.py``).
 Imported on first use (it joins the drivers' and the world's kernels).
 """
@@ -15,7 +16,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from acc_gym.drivers._baseline_kernels import slot_laws
+from acc_gym.drivers._baseline_kernels import decide_world
 from acc_gym.simulation._world_kernel import move
 
 
@@ -35,13 +36,10 @@ def coast(steps, ego_a, obs, slot_kind, law_kind, params, two, law_dt, profile, 
     I = np.empty((2, B, S), dtype=np.int64)
     nxt = np.empty_like(obs)
     a_des = np.empty((B, S))
+    ego = np.full(B, ego_a)
     t = np.empty(B)
     for i in range(steps):
-        slot_laws(obs, slot_kind, law_kind, params, two, law_dt, profile, clock, a_des)
-        for b in range(B):
-            a_des[b, 0] = ego_a
-        for r in range(clock.shape[0]):
-            clock[r] += 1
+        decide_world(obs, slot_kind, law_kind, params, two, law_dt, profile, clock, ego, a_des)
         F = np.empty((8, B, S))
         I = np.empty((2, B, S), dtype=np.int64)
         nxt = np.empty_like(obs)
