@@ -231,7 +231,11 @@ class EpisodeBatch:
         vehicles: :meth:`SlotDrivers.compiled_laws
         <acc_gym.drivers.slots.SlotDrivers.compiled_laws>`) and the reward is built in, their
         decision joins that call too (:func:`acc_gym.envs._kernel.laws_step_finish`; ``a_des``
-        a float64 array ``(n,)``). These are the same kernels, in the same order, that
+        a float64 array ``(n,)``), and the world's state then moves between two sets of arrays
+        in turn (:meth:`SingleLaneWorld.reused_buffers
+        <acc_gym.simulation.single_lane.SingleLaneWorld.reused_buffers>`): a state array read
+        from :attr:`world` keeps its values until the step after next (copy it to keep it).
+        These are the same kernels, in the same order, that
         :meth:`SingleLaneWorld.decide`, :meth:`SingleLaneWorld.move` and the separate
         criteria, reward, settle, record and observe calls run
         (``tests/envs/test_env_fast_paths.py`` checks the two agree).
@@ -246,7 +250,11 @@ class EpisodeBatch:
             laws = joint.compiled_laws() if joint is not None else None  # the drivers' decision joins the step
         if laws is None:
             a_all = w.decide(a_des)
-        F, I, obs_all = w.move_buffers()
+            F, I, obs_all = w.move_buffers()
+        else:  # nobody but this step reads the state's arrays: two sets reused in turn
+            buf = w.reused_buffers()
+            F, I, obs_all = buf.F, buf.I, buf.obs
+            obs_all.setflags(write=True)
         if arrays or code == K.REWARD_NONE:  # arrays handed out (in info, or to the caller's reward): fresh ones
             fl = np.empty((K.N_FLOAT + 1, n))  # criteria rows, then the time (K.F_T)
             bo = np.empty((K.N_BOOL, n), dtype=bool)
@@ -278,10 +286,12 @@ class EpisodeBatch:
                 w.observation_array(0)  # every slot's observations of the state, (S, 8, B), made if not yet
                 n_rows, n_ended = K.laws_step_finish(a_des, w._obs, *laws, *world_and_scenes)
                 if n_rows < 0:
+                    obs_all.setflags(write=False)
                     check_finite("ego_a_des", a_des)  # raises, naming the value, as decide() does (nothing moved)
+                w.adopt_buffers(buf)
             else:
                 n_rows, n_ended = K.step_finish(a_all, *world_and_scenes)
-            w.adopt(F, I, obs_all)
+                w.adopt(F, I, obs_all)
         else:  # the caller's reward, from the criteria rows, between the two halves
             K.step(a_all, w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1, lat.t_start, lat.duration,
                    w.lengths, w.width, float(w.road.lane_width), w.collided, w.sensor_range, F, I, obs_all,

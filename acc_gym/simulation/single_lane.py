@@ -203,6 +203,7 @@ class SingleLaneWorld:
             [np.broadcast_to(np.asarray(getattr(self.vehicle, c), float), (B, S)) for c in VEHICLE_COLUMNS], axis=-1))
         self.dt = float(dt)
         self.sensor_range = float(sensor_range)
+        self._buffer_sets = None  # reused_buffers()'s two sets, made on first use
         self.reset()
         self._check_apart()
 
@@ -450,6 +451,24 @@ class SingleLaneWorld:
         B, S = self.B, self.S
         return np.empty((8, B, S)), np.empty((2, B, S), dtype=np.int64), np.empty((S, len(_K.OBS_FIELDS), B))
 
+    def reused_buffers(self) -> "StateBuffers":
+        """:meth:`move_buffers` from two sets kept for reuse: the one that does not hold the
+        current state (the other after every :meth:`adopt_buffers`). Hand it to
+        :meth:`adopt_buffers` after the move. The state it replaces is then overwritten by the
+        move after next: a caller that reuses buffers (the environments' core) promises that
+        nobody keeps this world's state arrays for more than one step."""
+        sets = self._buffer_sets
+        if sets is None or sets[0].F.shape[1:] != (self.B, self.S):
+            sets = self._buffer_sets = (StateBuffers(*self.move_buffers()), StateBuffers(*self.move_buffers()))
+        return sets[1] if self.x.base is sets[0].F else sets[0]
+
+    def adopt_buffers(self, buf: "StateBuffers") -> None:
+        """:meth:`adopt` of a set from :meth:`reused_buffers` (its views made once)."""
+        self.x, self.v, self.a, self.a_des, self.y, self.a_y = buf.rows
+        self.neighbours = buf.neighbours
+        buf.obs.setflags(write=False)
+        self._obs = buf.obs
+
     def adopt(self, F: np.ndarray, I: np.ndarray, obs: np.ndarray) -> None:
         """Take the state a compiled :func:`~acc_gym.simulation._world_kernel.move` wrote into
         :meth:`move_buffers` (``k`` and the collision flags it updated in place): what
@@ -462,6 +481,28 @@ class SingleLaneWorld:
     def driver_info(self, slot: int) -> dict:
         model = self.drivers[slot]
         return dict(getattr(model, "info", None) or {}) if model is not None else {}
+
+
+class StateBuffers:
+    """One set of :meth:`SingleLaneWorld.move_buffers` kept for reuse, with the state's views
+    into it made once (:meth:`SingleLaneWorld.reused_buffers`)."""
+
+    __slots__ = ("F", "I", "obs", "rows", "neighbours")
+
+    def __init__(self, F: np.ndarray, I: np.ndarray, obs: np.ndarray):
+        self.F, self.I, self.obs = F, I, obs
+        x, v, a, a_des, y, a_y, gap, gap2 = F
+        self.rows = (x, v, a, a_des, y, a_y)
+        self.neighbours = Neighbours(lead=I[0], gap=gap, lead2=I[1], gap2=gap2)
+
+    def __reduce__(self):  # the views made again after a copy or unpickling (pickle copies a view's data)
+        return _unpickle_buffers, (self.F, self.I, self.obs)
+
+
+def _unpickle_buffers(F: np.ndarray, I: np.ndarray, obs: np.ndarray) -> StateBuffers:
+    # obs copied into memory of its own: an unpickled array's data may be the pickle's bytes, and once made
+    # read-only (adopt_buffers) such an array cannot be made writeable again for the step that reuses it
+    return StateBuffers(F, I, np.array(obs))
 
 
 @dataclass

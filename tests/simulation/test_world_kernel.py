@@ -11,6 +11,7 @@ States are random (``numpy.random.default_rng(seed)``) and drawn on coarse grids
 equal gaps (ties) and vehicles exactly on the corridor's edge occur often.
 """
 
+import pickle
 from dataclasses import fields
 
 import numpy as np
@@ -488,6 +489,49 @@ def test_fused_move_equals_move(seed):
     for name in ("x", "v"):
         assert not np.array_equal(getattr(stepped, name), getattr(ref, name))
     assert ref.collided.any() and (ref.neighbours.lead >= 0).any()  # the states exercised collisions and leads
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_reused_buffers_leave_the_state_fresh_buffers_leave(seed):
+    """The environments' core moves a world into two sets of buffers in turn
+    (``reused_buffers`` + ``adopt_buffers``): the same states as fresh buffers, step after
+    step; the set handed out never holds the current state, consecutive steps use different
+    sets, and a pickled copy mid-run continues identically (pickle copies a view's data: the
+    copy's state views are made again from its own buffers)."""
+    worlds = []
+    for _ in range(2):
+        w = make_world(3)
+        randomise(w, np.random.default_rng(seed))
+        worlds.append(w)
+    ref, reused = worlds
+    rng = np.random.default_rng(200 + seed)
+    last = None
+    for k in range(20):
+        if k == 10:
+            reused = pickle.loads(pickle.dumps(reused))
+        a = rng.uniform(-9.0, 4.0, size=(B, 3))
+        for w in (ref, reused):
+            for s in (1, 2):
+                w.drivers[s].a = a[:, s].copy()
+        ref.move_reference(ref.decide(a[:, 0]))
+        a_all = reused.decide(a[:, 0])
+        buf = reused.reused_buffers()
+        assert reused.x.base is not buf.F and buf is not last
+        buf.obs.setflags(write=True)
+        lat = reused.lateral
+        K.move(a_all, reused.present, reused.x, reused.v, reused._vp, reused.dt, reused.k, lat.y0, lat.y1,
+               lat.t_start, lat.duration, reused.lengths, reused.width, float(reused.road.lane_width),
+               reused.collided, reused.sensor_range, buf.F, buf.I, buf.obs, np.empty(B))
+        reused.adopt_buffers(buf)
+        last = buf
+        assert reused.x.base is buf.F and reused.neighbours.gap.base is buf.F
+        for name in ("x", "v", "a", "y", "a_y", "k", "collided"):
+            assert np.array_equal(getattr(reused, name), getattr(ref, name)), (k, name)
+        for name in ("lead", "gap", "lead2", "gap2"):
+            assert np.array_equal(getattr(reused.neighbours, name), getattr(ref.neighbours, name)), (k, name)
+        for s in range(3):
+            assert np.array_equal(reused.observation_array(s), ref.observation_array(s))
+        assert not reused.observation_array(0).flags.writeable
 
 
 def test_compiled_reset_rows_equals_the_numpy_path():
