@@ -52,6 +52,16 @@ def json_safe(x):
         return None if x != x else (str(x) if x - x != 0.0 else x)  # NaN; +-inf (inf - inf is NaN)
     if t is int or t is bool or t is str or x is None:
         return x
+    if t is dict:  # a report's dicts: their plain leaves converted here, without a call each
+        out = {}
+        for k, v in x.items():
+            tv = type(v)
+            if tv is float:
+                v = v if v - v == 0.0 else (None if v != v else str(v))
+            elif not (tv is int or tv is bool or tv is str or v is None):
+                v = json_safe(v)
+            out[k if type(k) is str else str(k)] = v
+        return out
     if isinstance(x, dict):
         return {str(k): json_safe(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):

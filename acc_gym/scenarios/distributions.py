@@ -80,6 +80,8 @@ def _laplace_cdf(z):
 
 
 def _laplace_ppf(u):
+    if isinstance(u, float) and 0.0 < u < 1.0:  # one draw (a scenario's): the branch np.where takes, on the number
+        return np.log(2.0 * u) if u < 0.5 else -np.log(2.0 - 2.0 * u)
     u = np.asarray(u, dtype=float)
     with np.errstate(divide="ignore"):
         return np.where(u < 0.5, np.log(2.0 * np.minimum(u, 0.5)), -np.log(2.0 - 2.0 * np.maximum(u, 0.5)))
@@ -375,12 +377,14 @@ class BivariateNormal:
     def bounded(self) -> bool:
         return any(math.isfinite(v) for v in (*self.low, *self.high))
 
-    def _draw(self, rng: np.random.Generator, n: int) -> np.ndarray:
+    def _cholesky(self) -> tuple[float, float, float]:
+        """``(l00, l10, l11)``: the lower Cholesky factor of ``cov``."""
         (c00, c01), (_, c11) = self.cov
         l00 = math.sqrt(c00)
-        l10, l11 = c01 / l00, math.sqrt(c11 - c01 * c01 / c00)  # Cholesky factor of cov
-        z = rng.standard_normal((n, 2))
-        return np.stack([self.mean[0] + l00 * z[:, 0], self.mean[1] + l10 * z[:, 0] + l11 * z[:, 1]], axis=1)
+        return l00, c01 / l00, math.sqrt(c11 - c01 * c01 / c00)
+
+    def _draw(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        return self._draw_from(rng.standard_normal((n, 2)), *self._cholesky())
 
     def _inside(self, x: np.ndarray) -> np.ndarray:
         return np.all((x >= np.array(self.low)) & (x <= np.array(self.high)), axis=-1)
@@ -409,9 +413,44 @@ class BivariateNormal:
                                f"{n} samples after {self.max_rounds} rounds (acceptance {accepted / drawn:.2g})")
         return out
 
+    def _first_inside(self, rng: np.random.Generator) -> np.ndarray:
+        """:meth:`_rejection` of one pair (a scenario's draw), with the same batches, the same
+        numbers and the same generator state after it: each round's batch is drawn whole, as
+        there, and its rows are searched in Python floats (the same IEEE operations as
+        :meth:`_draw`'s arrays) before numpy's vector check -- in a scenario's box almost
+        every first row is inside. ``tests/scenarios/test_distributions.py`` compares the two."""
+        l00, l10, l11 = self._cholesky()
+        m0, m1 = self.mean
+        (lo0, lo1), (hi0, hi1) = self.low, self.high
+        drawn = 0
+        for _ in range(self.max_rounds):
+            batch = min(self._batch_max, max(1024, 4 * max(drawn, 1)))  # _rejection's while nothing was accepted
+            z = rng.standard_normal((batch, 2))
+            for z0, z1 in z[:4].tolist():
+                x0 = m0 + l00 * z0
+                x1 = m1 + l10 * z0 + l11 * z1
+                if lo0 <= x0 <= hi0 and lo1 <= x1 <= hi1:
+                    return np.array([x0, x1])
+            x = self._draw_from(z[4:], l00, l10, l11)
+            ok = np.flatnonzero(self._inside(x))
+            if ok.size:
+                return x[ok[0]].copy()
+            drawn += batch
+            if drawn >= 4 * self._batch_max:
+                raise RuntimeError(f"BivariateNormal truncated to low={self.low}, high={self.high}: acceptance "
+                                   f"0 < {_MIN_ACCEPTANCE:g} after {drawn} draws; the box holds almost no probability")
+        raise RuntimeError(f"BivariateNormal truncated to low={self.low}, high={self.high}: only 0 of 1 samples "
+                           f"after {self.max_rounds} rounds (acceptance 0)")
+
+    def _draw_from(self, z: np.ndarray, l00: float, l10: float, l11: float) -> np.ndarray:
+        """:meth:`_draw`'s pairs from given standard normals ``z`` ``(n, 2)``."""
+        return np.stack([self.mean[0] + l00 * z[:, 0], self.mean[1] + l10 * z[:, 0] + l11 * z[:, 1]], axis=1)
+
     def sample(self, rng: np.random.Generator, size: Size = None) -> np.ndarray:
         """Draw pairs: shape (2,) if ``size`` is None, else (size, 2) (or (*size, 2))."""
         _check_rng(rng)
+        if size is None and self.bounded:  # one pair (a scenario's), the same numbers as the general path
+            return self._first_inside(rng)
         shape = () if size is None else ((size,) if isinstance(size, numbers.Integral) else tuple(size))
         n = math.prod(shape)
         x = self._rejection(rng, n) if self.bounded else self._draw(rng, n)

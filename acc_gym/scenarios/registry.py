@@ -31,6 +31,7 @@ import numpy as np
 
 from acc_gym.drivers.baselines import MODELS
 from acc_gym.drivers.population import KINDS, sample_driver_values
+from acc_gym.scenarios._seeding import spawned_generators
 from acc_gym.scenarios.spec import DriverSpec, Scenario, _finite
 
 DRIVER_CHOICES = (*KINDS, *sorted(MODELS))
@@ -71,12 +72,16 @@ class ScenarioType:
     def sample_params(self, rng: np.random.Generator, given: dict | None = None) -> dict:
         """Draw the parameters not in ``given`` (in declaration order) and merge."""
         given = check_params(self.id, given)
-        unknown = set(given) - set(self.parameter_names)
+        unknown = set(given) - set(self.parameter_names) if given else ()
         if unknown:
             raise ValueError(f"unknown parameter(s) {sorted(unknown)} for scenario {self.id!r}; "
                              f"known: {self.parameter_names}")
         out: dict[str, float] = {}
         for key, law in self.parameters.items():
+            if not given and type(key) is str:  # one law of one parameter, drawn (a reset's case)
+                value = law.sample(rng)
+                out[key] = value if type(value) is float else float(np.atleast_1d(value)[0])
+                continue
             names = key if isinstance(key, tuple) else (key,)
             have = [n in given for n in names]
             if all(have):
@@ -174,10 +179,10 @@ def scenario_rngs(scenario_id: str, seed: int) -> tuple[np.random.Generator, np.
     (surrounding drivers, speed profiles), spawned from ``SeedSequence([crc32(id), seed])`` so
     that giving some parameters explicitly never shifts the builder's draws."""
     entropy = [zlib.crc32(scenario_id.encode()), check_seed(seed)]
-    # the two children SeedSequence(entropy).spawn(2) makes (spawn keys (0,) and (1,)), built
-    # directly: the same streams without the parent's pool (resets draw a scenario each)
-    return (np.random.Generator(np.random.PCG64(np.random.SeedSequence(entropy, spawn_key=(0,)))),
-            np.random.Generator(np.random.PCG64(np.random.SeedSequence(entropy, spawn_key=(1,)))))
+    # the two children SeedSequence(entropy).spawn(2) makes (spawn keys (0,) and (1,)), their seed words
+    # computed together in one compiled call (resets draw a scenario each): numpy's generators in numpy's states
+    param_rng, build_rng = spawned_generators(entropy, 2)
+    return param_rng, build_rng
 
 
 def build(scenario_id: str, params: dict | None = None, seed: int = 0, drivers: str = "typical") -> Scenario:

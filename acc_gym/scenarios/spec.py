@@ -44,6 +44,9 @@ _NUMBER = (int, float, np.integer, np.floating)
 
 def _finite(name: str, value, *, positive=False, nonnegative=False, at_most: float | None = None) -> float:
     """``value`` as a float: a real number (not a bool, not text), finite, within the bounds."""
+    if (type(value) is float and value - value == 0.0 and (not positive or value > 0) and (not nonnegative or value >= 0)
+            and (at_most is None or value <= at_most)):
+        return value  # a finite Python float within the bounds (the usual case): what the checks below return
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, _NUMBER):
         raise ValueError(f"{name} must be a number, got {value!r} ({type(value).__name__})")
     x = float(value)
@@ -108,11 +111,15 @@ class DriverSpec:
             object.__setattr__(self, "speeds", s)
         elif self.times is not None or self.speeds is not None:
             raise ValueError(f"times/speeds are only for 'profile' drivers, not {self.model!r}")
-        else:
-            self.params_object()  # validate the parameter names and values now
+        else:  # validate the parameter names and values now; the (frozen) result kept for params_object()
+            object.__setattr__(self, "_params_object", self._make_params_object())
 
     def params_object(self):
-        """The model's parameter dataclass (validated)."""
+        """The model's parameter dataclass (validated; made once, when the spec is)."""
+        made = self.__dict__.get("_params_object")
+        return made if made is not None else self._make_params_object()
+
+    def _make_params_object(self):
         cls = MPCDriverParams if self.model == "mpc" else MODELS[self.model].params_type
         names = {f.name for f in fields(cls)}
         unknown = set(self.params) - names
@@ -182,16 +189,25 @@ class VehicleSpec:
     def __post_init__(self) -> None:
         if self.role not in ROLES:
             raise ValueError(f"unknown vehicle role {self.role!r}; use one of {ROLES}")
+        x0, v0, length, width = self.x0, self.v0, self.length, self.width
+        if (type(x0) is float and type(v0) is float and type(length) is float and type(width) is float
+                and type(self.lane) is int and x0 - x0 == 0.0 and 0.0 <= v0 <= MAX_SPEED and 0.0 < length < math.inf
+                and 0.0 < width < math.inf and self.lane >= 0):
+            pass  # plain numbers within the bounds (a builder's): what the checks below would store
+        else:
+            self._check_numbers()
+        if self.role == "SV" and self.driver is not None:
+            raise ValueError("the SV (ego) is driven by the controller under test; give it no driver")
+        if self.role != "SV" and self.driver is None:
+            raise ValueError(f"{self.role} needs a driver")
+
+    def _check_numbers(self) -> None:
         object.__setattr__(self, "x0", _finite(f"{self.role}.x0", self.x0))
         object.__setattr__(self, "v0", _finite(f"{self.role}.v0 (initial speed)", self.v0, nonnegative=True,
                                                at_most=MAX_SPEED))
         object.__setattr__(self, "length", _finite(f"{self.role}.length", self.length, positive=True))
         object.__setattr__(self, "width", _finite(f"{self.role}.width", self.width, positive=True))
         object.__setattr__(self, "lane", _integer(f"{self.role}.lane (a lane index)", self.lane))
-        if self.role == "SV" and self.driver is not None:
-            raise ValueError("the SV (ego) is driven by the controller under test; give it no driver")
-        if self.role != "SV" and self.driver is None:
-            raise ValueError(f"{self.role} needs a driver")
 
     def to_dict(self) -> dict:
         return {"role": self.role, "x0": self.x0, "v0": self.v0, "lane": self.lane,
@@ -233,8 +249,12 @@ class Scenario:
         object.__setattr__(self, "seed", _integer("Scenario.seed", self.seed))
         if not isinstance(self.params, dict):
             raise ValueError(f"Scenario.params must be a JSON object, got {type(self.params).__name__}")
-        object.__setattr__(self, "params", {str(k): _finite(f"Scenario.params[{k!r}]", v)
-                                            for k, v in self.params.items()})
+        params = self.params
+        if all(type(k) is str and type(v) is float and v - v == 0.0 for k, v in params.items()):
+            object.__setattr__(self, "params", dict(params))  # finite floats by name (a builder's): as below
+        else:
+            object.__setattr__(self, "params", {str(k): _finite(f"Scenario.params[{k!r}]", v)
+                                                for k, v in params.items()})
         if not isinstance(self.drivers, str):
             raise ValueError(f"Scenario.drivers must be a string, got {self.drivers!r}")
         object.__setattr__(self, "vehicles", tuple(self.vehicles))

@@ -317,3 +317,41 @@ def test_episodes_run_without_scipy_integrate():
             "print(info['score'] >= 0)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=False)
     assert out.returncode == 0 and out.stdout.split()[-1] == "True", out.stderr[-2000:]
+
+
+@pytest.mark.parametrize("law", [
+    BivariateNormal((27.0, 40.0), ((16.0, 28.8), (28.8, 144.0)), low=(8.0, 8.0), high=(40.0, 120.0)),  # SPEED_GAP
+    BivariateNormal((25.0, 40.0), COV, low=(30.0, 50.0)),  # a tail box: the first rows are mostly outside
+    BivariateNormal((0.0, 0.0), ((1.0, 0.5), (0.5, 1.0)), low=(3.0, 3.2)),  # acceptance ~1e-4: several rounds
+], ids=["speed-gap", "tail", "rare"])
+def test_one_bivariate_pair_equals_the_rejection_loop(law):
+    """One pair (``size=None``: a scenario's draw, searched row by row in Python floats) is the
+    pair the general rejection loop gives from the same generator state, bit for bit, inside
+    the box, and leaves the generator in the same state (the parameters drawn after it are
+    the same)."""
+    for seed in range(60):
+        r1, r2 = np.random.default_rng(seed), np.random.default_rng(seed)
+        one = law.sample(r1)
+        ref = law._rejection(r2, 1)[0]
+        assert one.shape == (2,) and np.array_equal(one, ref)
+        assert r1.bit_generator.state == r2.bit_generator.state
+        assert all(lo <= v <= hi for v, lo, hi in zip(one, law.low, law.high))
+
+
+def test_one_bivariate_pair_gives_up_on_an_empty_box_as_the_loop_does():
+    law = BivariateNormal((0.0, 0.0), ((1.0, 0.0), (0.0, 1.0)), low=(10.0, 10.0))
+    with pytest.raises(RuntimeError, match=re.escape("low=(10.0, 10.0), high=(inf, inf): acceptance 0 < 1e-06")):
+        law.sample(np.random.default_rng(0))
+
+
+def test_laplace_inverse_cdf_of_a_number_equals_the_array_formula():
+    """The standard Laplace inverse CDF of one number (a scenario's draw) takes the branch the
+    array formula's ``np.where`` takes, with the same bits, over uniforms across (0, 1)."""
+    from acc_gym.scenarios.distributions import _laplace_ppf
+
+    rng = np.random.default_rng(11)
+    u = np.concatenate([rng.random(20_000), [0.5, np.nextafter(0.5, 0.0), np.nextafter(0.5, 1.0), 1e-300,
+                                             np.nextafter(1.0, 0.0)]])
+    ref = _laplace_ppf(u)
+    got = np.array([_laplace_ppf(float(x)) for x in u])
+    assert np.array_equal(got, ref)
