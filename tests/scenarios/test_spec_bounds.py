@@ -150,3 +150,38 @@ def test_env_reset_names_a_bad_scenario_option(env, scenario, error, words):
         env.reset(seed=0, options={"scenario": scenario})
     _, info = env.reset(seed=0, options={"scenario": "carfollowing/90"})  # still usable, draws a valid seed
     assert info["scenario"] == "carfollowing/90" and type(info["scenario_seed"]) is int
+
+
+@pytest.mark.parametrize("field,value,words", [
+    ("x0", float("nan"), "POV.x0 must be finite"), ("x0", float("inf"), "POV.x0 must be finite"),
+    ("v0", -0.5, r"POV.v0 \(initial speed\) must be >= 0"), ("v0", MAX_SPEED + 1.0, "must be at most"),
+    ("length", 0.0, "POV.length must be > 0"), ("width", float("inf"), "POV.width must be finite"),
+    ("lane", -1, r"POV.lane \(a lane index\) must be a non-negative integer"),
+])
+def test_a_vehicle_of_plain_floats_is_still_checked(field, value, words):
+    """A builder's vehicle (plain floats, an int lane) skips the conversions but not the
+    checks: each bad value is refused, naming the field; ints are still stored as floats."""
+    from acc_gym.scenarios.spec import DriverSpec, VehicleSpec
+
+    kwargs = {"role": "POV", "x0": 30.0, "v0": 20.0, "lane": 0, "driver": DriverSpec("idm", {"v_desired": 20.0}),
+              "length": 4.7, "width": 1.8, field: value}
+    with pytest.raises(ValueError, match=words):
+        VehicleSpec(**kwargs)
+    ok = VehicleSpec("POV", 30, 20, 0, kwargs["driver"], None, 5, 2)
+    assert all(type(getattr(ok, f)) is float for f in ("x0", "v0", "length", "width"))
+
+
+def test_a_drivers_parameters_object_is_made_once_and_checked_when_the_spec_is():
+    import pickle
+
+    from acc_gym.drivers.baselines import MODELS
+    from acc_gym.scenarios.spec import DriverSpec
+
+    spec = DriverSpec("idm", {"v_desired": 20.0})
+    made = spec.params_object()
+    assert made is spec.params_object() and made == MODELS["idm"].params_type(v_desired=20.0)
+    assert spec == DriverSpec("idm", {"v_desired": 20.0}) and spec.to_dict() == {"model": "idm",
+                                                                                 "params": {"v_desired": 20.0}}
+    assert pickle.loads(pickle.dumps(spec)).params_object() == made
+    with pytest.raises(ValueError, match="unknown parameter"):
+        DriverSpec("idm", {"v_wanted": 20.0})
