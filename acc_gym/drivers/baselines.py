@@ -48,23 +48,29 @@ A_CEIL = 10.0
 _PLAIN = (float, int)  # plain numbers: checked without building arrays (resets validate every new driver)
 
 
+_FIELD_NAMES: dict = {}  # parameter dataclass -> its fields' names (resets validate every new driver)
+
+
 def _validate(params, positive=(), negative=(), nonnegative=()):
-    for f in fields(params):
-        value = getattr(params, f.name)
+    names = _FIELD_NAMES.get(type(params))
+    if names is None:
+        names = _FIELD_NAMES[type(params)] = tuple(f.name for f in fields(params))
+    for name in names:
+        value = getattr(params, name)
         if value is None:
             continue
         if type(value) in _PLAIN and math.isfinite(value) and not (
-                (f.name in positive and value <= 0) or (f.name in negative and value >= 0)
-                or (f.name in nonnegative and value < 0)):
+                (name in positive and value <= 0) or (name in negative and value >= 0)
+                or (name in nonnegative and value < 0)):
             continue  # a valid plain number, checked without numpy (an invalid one gets the messages below)
-        check_finite(f"{type(params).__name__}.{f.name}", value)
+        check_finite(f"{type(params).__name__}.{name}", value)
         arr = np.asarray(value, dtype=float)
-        if f.name in positive and np.any(arr <= 0):
-            raise ValueError(f"{type(params).__name__}.{f.name} must be > 0, got {value!r}")
-        if f.name in negative and np.any(arr >= 0):
-            raise ValueError(f"{type(params).__name__}.{f.name} must be < 0, got {value!r}")
-        if f.name in nonnegative and np.any(arr < 0):
-            raise ValueError(f"{type(params).__name__}.{f.name} must be >= 0, got {value!r}")
+        if name in positive and np.any(arr <= 0):
+            raise ValueError(f"{type(params).__name__}.{name} must be > 0, got {value!r}")
+        if name in negative and np.any(arr >= 0):
+            raise ValueError(f"{type(params).__name__}.{name} must be < 0, got {value!r}")
+        if name in nonnegative and np.any(arr < 0):
+            raise ValueError(f"{type(params).__name__}.{name} must be >= 0, got {value!r}")
 
 
 def _has(gap) -> np.ndarray:

@@ -40,6 +40,7 @@ MAX_TIME_GAP = 10.0  # [s]
 # driver parameters that are speeds [m/s] (desired / set / top speed): bounded like the vehicles' speeds
 DRIVER_SPEED_PARAMS = ("v_desired", "v_max", "v_set")
 _NUMBER = (int, float, np.integer, np.floating)
+_PARAM_NAMES: dict = {}  # a driver model's parameter dataclass -> its fields' names
 
 
 def _finite(name: str, value, *, positive=False, nonnegative=False, at_most: float | None = None) -> float:
@@ -93,9 +94,13 @@ class DriverSpec:
             raise ValueError(f"unknown driver model {self.model!r}; known: {list(DRIVER_MODELS)}")
         if not isinstance(self.params, dict):
             raise ValueError(f"driver params must be a JSON object, got {type(self.params).__name__}")
-        params = {str(k): _finite(f"driver params[{k!r}]", v) for k, v in self.params.items()}
+        params = self.params
+        if all(type(k) is str and type(v) is float and v - v == 0.0 for k, v in params.items()):
+            params = dict(params)  # finite floats by name (a builder's): as below
+        else:
+            params = {str(k): _finite(f"driver params[{k!r}]", v) for k, v in params.items()}
         for name in DRIVER_SPEED_PARAMS:
-            if name in params:
+            if name in params and not 0.0 <= params[name] <= MAX_SPEED:
                 _finite(f"driver params[{name!r}] (a speed of model {self.model!r})", params[name], nonnegative=True,
                         at_most=MAX_SPEED)
         if self.model == "profile" and params:
@@ -121,7 +126,9 @@ class DriverSpec:
 
     def _make_params_object(self):
         cls = MPCDriverParams if self.model == "mpc" else MODELS[self.model].params_type
-        names = {f.name for f in fields(cls)}
+        names = _PARAM_NAMES.get(cls)
+        if names is None:
+            names = _PARAM_NAMES[cls] = frozenset(f.name for f in fields(cls))
         unknown = set(self.params) - names
         if unknown:
             raise ValueError(f"unknown parameter(s) {sorted(unknown)} for driver model {self.model!r}")

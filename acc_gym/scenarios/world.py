@@ -79,28 +79,28 @@ class SceneArrays:
 def scene_arrays(scenarios, road) -> SceneArrays:
     """Lay ``scenarios`` out as arrays for :class:`SingleLaneWorld` (lateral moves on ``road``)."""
     B, S = len(scenarios), len(ROLES)
-    x0 = np.full((B, S), ABSENT_X)
-    v0 = np.zeros((B, S))
+    # every float column as rows of Python numbers (x0, v0, y0, y1, t_start, duration, length, width), made
+    # into arrays once: an absent slot is parked at ABSENT_X, still, in lane 0, 4.7 m by 1.8 m
+    absent = (ABSENT_X, 0.0, 0.0, 0.0, 0.0, 1.0, 4.7, 1.8)
+    rows = [[absent] * S for _ in range(B)]
     present = np.zeros((B, S), dtype=bool)
-    y0 = np.zeros((B, S))
-    y1 = np.zeros((B, S))
-    t_start = np.zeros((B, S))
-    dur = np.ones((B, S))
-    length = np.full((B, S), 4.7)
-    width = np.full((B, S), 1.8)
+    lane_width = float(road.lane_width)
     specs = [[None] * B for _ in range(S)]
     for b, sc in enumerate(scenarios):
+        row = rows[b]
         for v in sc.vehicles:
             s = ROLES.index(v.role)
             present[b, s] = True
-            x0[b, s], v0[b, s] = v.x0, v.v0
-            y0[b, s] = y1[b, s] = road.lane_centre(v.lane)
-            if v.lane_change is not None:
-                y1[b, s] = road.lane_centre(v.lane_change.to_lane)
-                t_start[b, s], dur[b, s] = v.lane_change.t_start, v.lane_change.duration
-            length[b, s], width[b, s] = v.length, v.width
+            y = v.lane * lane_width  # Road.lane_centre's product, on numbers
+            lc = v.lane_change
+            if lc is not None:
+                row[s] = (v.x0, v.v0, y, lc.to_lane * lane_width, lc.t_start, lc.duration, v.length, v.width)
+            else:
+                row[s] = (v.x0, v.v0, y, y, 0.0, 1.0, v.length, v.width)
             specs[s][b] = v.driver
-    return SceneArrays(x0, v0, present, LateralPlan(y0, y1, t_start, dur), length, width, specs)
+    x0, v0, y0, y1, t_start, dur, length, width = np.ascontiguousarray(np.array(rows, dtype=float).transpose(2, 0, 1))
+    # the lateral values are validated scenarios' (finite lanes, start times; durations > 0): not checked again
+    return SceneArrays(x0, v0, present, LateralPlan.checked(y0, y1, t_start, dur), length, width, specs)
 
 
 def make_world(scenarios, *, ego=None, mpc_settings: MPCSettings | None = None,

@@ -95,6 +95,16 @@ class LateralPlan:
         check_positive("LateralPlan.duration", self.duration)
 
     @classmethod
+    def checked(cls, y0: np.ndarray, y1: np.ndarray, t_start: np.ndarray, duration: np.ndarray) -> "LateralPlan":
+        """A plan of float arrays whose values were checked where they came from (finite, and
+        ``duration > 0``: :func:`acc_gym.scenarios.world.scene_arrays` lays out validated
+        scenarios), made without checking them again."""
+        plan = object.__new__(cls)
+        for name, value in (("y0", y0), ("y1", y1), ("t_start", t_start), ("duration", duration)):
+            object.__setattr__(plan, name, value)
+        return plan
+
+    @classmethod
     def still(cls, y) -> "LateralPlan":
         y = np.asarray(y, dtype=float)
         return cls(y, y, np.zeros_like(y), np.ones_like(y))
