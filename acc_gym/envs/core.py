@@ -124,12 +124,11 @@ class EpisodeBatch:
             self.tau1[row] = judged_tau1(sc.time_gap or None, declared[j], self.config.scoring)
             self.n_lanes[row] = sc.road.n_lanes
         rows_a = np.array(rows)
-        state = self._lead_state()
-        _, has, gap, v0, _ = state
-        _, q = self._q(self.world.v[:, 0], v0, gap, has)
-        self.neg_since[rows_a] = np.where(q[rows_a] < 0, 0.0, np.nan)
+        lead, has, gap, v0 = self._lead_state(rows_a)
+        q = self._q(self.world.v[rows_a, 0], v0, gap, has, self.tau1[rows_a])
+        self.neg_since[rows_a] = np.where(q < 0, 0.0, np.nan)
         self.last_change[rows_a] = 0.0
-        self.lead_prev[rows_a] = self.world.neighbours.lead[rows_a, 0]
+        self.lead_prev[rows_a] = lead
         self.done[rows_a] = False
         self.episode_return[rows_a] = 0.0
         need = int(self.steps[rows_a].max()) + 1
@@ -151,20 +150,20 @@ class EpisodeBatch:
             for vehicle in scenario.vehicles:
                 self.drivers.prepare(vehicle.driver)
 
-    def _q(self, v1, v0, gap, has):
-        """Gapsafe and Q per scene (each with its own tau1)."""
+    def _q(self, v1, v0, gap, has, tau1):
+        """Q of scenes whose ego speeds, lead speeds, gaps, leads and tau1 are these arrays."""
         cfg = self.config.scoring
-        gs = v1 * self.tau1 + v1 ** 2 / (2.0 * cfg.b1) - v0 ** 2 / (2.0 * cfg.b0)
-        return gs, np.where(has, gap - gs, np.inf)
+        gs = v1 * tau1 + v1 ** 2 / (2.0 * cfg.b1) - v0 ** 2 / (2.0 * cfg.b0)
+        return np.where(has, gap - gs, np.inf)
 
-    def _lead_state(self):
+    def _lead_state(self, rows: np.ndarray):
+        """The egos' vehicles ahead of scenes ``rows`` (-1: none), whether there is one, the gaps
+        [m] and their speeds [m/s] (0 without one)."""
         w = self.world
-        lead = w.neighbours.lead[:, 0]
-        rows = np.arange(self.n)
-        safe = np.maximum(lead, 0)
+        lead = w.neighbours.lead[rows, 0]
         has = lead >= 0
-        v_lead = np.where(has, w.v[rows, safe], 0.0)
-        return lead, has, w.neighbours.gap[:, 0], v_lead, np.where(has, w.a[rows, safe], 0.0)
+        v_lead = np.where(has, w.v[rows, np.maximum(lead, 0)], 0.0)
+        return lead, has, w.neighbours.gap[rows, 0], v_lead
 
     def _record(self, rows) -> None:
         """Write the current state of scenes ``rows`` into their episode records at their step."""

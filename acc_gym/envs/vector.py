@@ -165,7 +165,11 @@ class ACCVectorEnv(VectorEnv):
             infos["_" + key] = active.copy()
         infos["modes"] = raw["modes"].copy()
         infos["_modes"] = active.copy()
-        infos["rewards"] = {k: np.where(active, v, 0.0) for k, v in raw["rewards"].items()}
+        terms = self.core.last_rows[2]  # a built-in reward's terms as one array (rows: names), else None
+        if terms is not None:  # masked in one call
+            infos["rewards"] = dict(zip(self.core.last_term_names, np.where(active, terms, 0.0)))
+        else:
+            infos["rewards"] = {k: np.where(active, v, 0.0) for k, v in raw["rewards"].items()}
         infos["_rewards"] = active.copy()
         final = raw["final"]
         if final:

@@ -285,7 +285,8 @@ class SingleLaneWorld:
                 and present.dtype == np.bool_ and all(type(arg) is np.ndarray and arg.shape == shape
                                                      and arg.dtype == np.float64 for arg in args if arg is not None)):
             lat, plan = self.lateral, lateral
-            plan_arrays = [np.broadcast_to(getattr(plan, f), shape) for f in ("y0", "y1", "t_start", "duration")]
+            plan_arrays = [a if type(a) is np.ndarray and a.shape == shape else np.broadcast_to(a, shape)
+                           for a in (plan.y0, plan.y1, plan.t_start, plan.duration)]
             zeros = np.zeros(shape)
             if _K.place(rows, x0, v0, zeros if a0 is None else a0, present,
                         self.lengths[rows] if lengths is None else lengths, self.width[rows] if width is None else width,
