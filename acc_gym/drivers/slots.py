@@ -118,19 +118,20 @@ class SlotDrivers:
         kinds = self.kind.tobytes()
         if kinds != getattr(self, "_kinds_seen", None):
             self._kinds_seen = kinds
+            counts = np.bincount(self.kind, minlength=4)  # rows per kind (none, mpc, profile, baseline)
             is_mpc = self.kind == 1
             if self._mpc is not None:  # the kernel skips the rows without an MPC driver (their output is unused)
                 self._mpc.set_idle(~is_mpc)
-            self._profile_rows = np.flatnonzero(self.kind == 2)
-            self._has_profiles = self._profile_rows.size > 0
-            self._has_baselines = bool(np.any(self.kind == 3))
-            if self._mpc is not None and is_mpc.all():
+            self._profile_rows = np.flatnonzero(self.kind == 2) if counts[2] else np.zeros(0, dtype=np.int64)
+            self._has_profiles = bool(counts[2])
+            self._has_baselines = bool(counts[3])
+            if self._mpc is not None and counts[1] == self.n:
                 self._path_cached = "mpc"
-            elif self._mpc is not None and is_mpc.any() and not self._has_baselines:
+            elif self._mpc is not None and counts[1] and not self._has_baselines:
                 self._path_cached = "mpc+idle"
                 self._is_mpc = is_mpc
                 self._idle = np.flatnonzero(~is_mpc)
-            elif not is_mpc.any() and not self._baseline.delayed():
+            elif not counts[1] and not self._baseline.delayed():
                 self._path_cached = "baselines"
                 baseline = self.kind == _bk.BASELINE  # every baseline row's law compiled (a MODELS class): one call
                 self._compiled_laws = bool(np.all(self._baseline.law_kind[baseline] >= 0))
@@ -369,9 +370,8 @@ class BaselineRows:
 
     def delayed(self) -> bool:
         """Does some row's driver have a reaction delay (then :meth:`act` keeps a ring of past
-        observations)?"""
-        self._groups()
-        return self._delayed
+        observations)? A row without a baseline driver has no delay (:meth:`remove`)."""
+        return bool(np.any(self._delay > 0))
 
     def _groups(self) -> list:
         if self._active is None:
