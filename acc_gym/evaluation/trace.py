@@ -199,7 +199,9 @@ class EgoTrace:
                 return False
         for name in _SCALARS:
             value = getattr(self, name)
-            if value is not None and not (np.isfinite(value) and value > 0):
+            if value is None or (type(value) is float and 0.0 < value < math.inf):  # a plain float: no numpy
+                continue
+            if not (np.isfinite(value) and value > 0):
                 return False
         empty = _EMPTY
         return bool(_columns_valid(*(empty if c is None else c for c in cols)))
