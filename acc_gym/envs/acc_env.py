@@ -343,6 +343,8 @@ class ACCEnv(gym.Env):
                                                self.observation_space.high.astype(float))
         self._accel_max, self._decel_max = float(self.config.accel_max), float(self.config.decel_max)
         self._needs_reset = True
+        self._a_des = np.zeros(1)  # [m/s^2] the usual step's desired acceleration, written in place
+        self._scenario_id = None  # the running scenario's id (info["scenario"])
         self._last_info = None  # the last step's info while the episode runs (see reset)
         self._viewer = None
 
@@ -373,6 +375,7 @@ class ACCEnv(gym.Env):
         self.core.reset_rows([0], [self.np_random], [scenario], [time_gap])
         self._needs_reset = False
         sc = self.scenario
+        self._scenario_id = sc.id
         if self.render_mode == "human":
             self.render()
         return self._obs(), {"scenario": sc.id, "scenario_seed": sc.seed, "t": 0.0}
@@ -383,7 +386,8 @@ class ACCEnv(gym.Env):
         x = float(action[0]) if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f" else None
         if x is not None and math.isfinite(x):  # the usual action: one finite float, mapped with Python floats
             x = min(max(x, -1.0), 1.0)  # the operations of action_to_accel's kernel, so the same bits
-            a_des = np.array([x * self._accel_max if x >= 0 else x * self._decel_max])
+            a_des = self._a_des  # the env's own (1,) array: the step reads it, nothing keeps it
+            a_des[0] = x * self._accel_max if x >= 0 else x * self._decel_max
         else:
             a_des = action_to_accel(check_actions(action, (1,)), self.config)
         core = self.core
@@ -401,7 +405,7 @@ class ACCEnv(gym.Env):
             out["rewards"] = dict(zip(core.last_term_names, terms[:, 0].tolist()))
         else:
             out["rewards"] = {k: float(v[0]) for k, v in info["rewards"].items()}
-        out["scenario"] = self.scenario.id
+        out["scenario"] = self._scenario_id
         if 0 in info["final"]:
             out.update(info["final"][0])
             self._needs_reset = True

@@ -72,9 +72,15 @@ class EpisodeBatch:
         self._no_bounds = np.zeros(1)
         self._plan = None  # (reward_fn, obs_bounds, what step() needs of them): _step_plan()
         self._scratch_buf = None  # step(arrays=False)'s arrays: _scratch()
+        self._prepared = None  # the single env's step's argument list, reused until a reset: _step_prepared()
         self._rows_buf = np.empty((2, self.n), dtype=np.int64)  # finish()'s rows recorded and rows ended
         self._cfg = np.array([cfg.b0, cfg.b1, cfg.band_width, cfg.steady_dv, cfg.moving_speed, cfg.transient,
                               cfg.sensor_range, cfg.response_decel, cfg.stop_speed, cfg.lead_margin], dtype=float)
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["_prepared"] = None  # made again after unpickling (pickle copies views: the list's would be stale)
+        return state
 
     def _set_record(self, arr: np.ndarray) -> None:
         self._rec_arr = arr  # (columns, scenes, steps)
@@ -90,6 +96,7 @@ class EpisodeBatch:
         (``rngs[j]``) unless ``scenarios[j]`` is given; ``time_gaps[j]`` (None: none) is the
         controller's declared time gap the episode is judged at
         (:func:`acc_gym.evaluation.scoring.judged_tau1`)."""
+        self._prepared = None  # step()'s argument list is made again for the new episodes
         rows = [int(r) for r in np.atleast_1d(rows)]
         given = scenarios if scenarios is not None else [None] * len(rows)
         missing = [j for j, sc in enumerate(given) if sc is None]
@@ -234,6 +241,9 @@ class EpisodeBatch:
         in turn (:meth:`SingleLaneWorld.reused_buffers
         <acc_gym.simulation.single_lane.SingleLaneWorld.reused_buffers>`): a state array read
         from :attr:`world` keeps its values until the step after next (copy it to keep it).
+        The single env's steps (``arrays=False``) after the first of an episode on that path
+        reuse its argument list with the entries that change every step replaced
+        (:meth:`_step_prepared`; made again after every :meth:`reset_rows`).
         These are the same kernels, in the same order, that
         :meth:`SingleLaneWorld.decide`, :meth:`SingleLaneWorld.move` and the separate
         criteria, reward, settle, record and observe calls run
@@ -241,8 +251,13 @@ class EpisodeBatch:
         """
         w = self.world
         n = self.n
+        step_plan = self._step_plan()
+        prepared = self._prepared
+        if (prepared is not None and prepared[0] is step_plan and not arrays and active is None
+                and type(a_des) is np.ndarray and a_des.dtype == np.float64 and a_des.shape == (n,)):
+            return self._step_prepared(a_des, prepared)
         (code, names, weights, a_comfort, grace, low, high, m0, extra, f_low, f_high, obs_range, v2v,
-         terminate) = self._step_plan()
+         terminate) = step_plan
         laws = None
         if code != K.REWARD_NONE and type(a_des) is np.ndarray and a_des.dtype == np.float64 and a_des.shape == (n,):
             joint = getattr(w, "joint", None)
@@ -263,7 +278,8 @@ class EpisodeBatch:
         else:  # the single env with a built-in reward reads them before the next step (last_rows): the core's own
             fl, bo, terms_arr, reward, terminated, truncated = self._scratch(len(names))
         rows, ended = self._rows_buf
-        if active is None:
+        own_active = active is None  # which scenes step: the not-done ones (the single env's case)
+        if own_active:
             active = ~self.done
         if m0 is not None:  # obs_bounds set: the observations after the step, fresh (handed out)
             obs = np.empty((n, m0), dtype=float if extra else np.float32)
@@ -283,11 +299,16 @@ class EpisodeBatch:
                 v2v, low, high, obs, f_low, f_high, obs32)
             if laws is not None:  # drivers of one compiled call too: they decide inside it
                 w.observation_array(0)  # every slot's observations of the state, (S, 8, B), made if not yet
-                n_rows, n_ended = K.laws_step_finish(a_des, w._obs, *laws, *world_and_scenes)
+                args = [a_des, w._obs, *laws, *world_and_scenes]
+                n_rows, n_ended = K.laws_step_finish(*args)
                 if n_rows < 0:
                     obs_all.setflags(write=False)
                     check_finite("ego_a_des", a_des)  # raises, naming the value, as decide() does (nothing moved)
                 w.adopt_buffers(buf)
+                if not arrays and own_active and m0 is not None:
+                    # the single env's next steps until a reset: these arguments with the per-step ones replaced
+                    self._prepared = (step_plan, args, (fl, bo, terms_arr), names, reward, terminated, truncated,
+                                      ended, (n, m0), np.float32 if not extra else float, (n, m0 + extra))
             else:
                 n_rows, n_ended = K.step_finish(a_all, *world_and_scenes)
                 w.adopt(F, I, obs_all)
@@ -313,22 +334,61 @@ class EpisodeBatch:
         # the step's criteria rows and, for the built-in rewards, their terms as one array (rows: names)
         self.last_rows = (fl, bo, terms_arr)
         self.last_term_names = names
-        if arrays:
-            if terms is None:
-                terms = dict(zip(names, terms_arr))
-            q = fl[K.F_Q]
-            info = {"t": fl[K.F_T], "q": q, "g": q, "gap_safe": fl[K.F_GS], "a_applied": fl[K.F_A],
-                    "violation": bo[K.B_VIOLATION], "modes": self.modes(), "fallbacks": self.fallbacks(),
-                    "rewards": terms}
-        else:
-            info = {} if terms_arr is not None else {"rewards": terms}
+        if not arrays:
+            return reward, terminated, truncated, self._ended_info({} if terms_arr is not None else {"rewards": terms},
+                                                                   ended, n_ended)
+        if terms is None:
+            terms = dict(zip(names, terms_arr))
+        q = fl[K.F_Q]
+        info = {"t": fl[K.F_T], "q": q, "g": q, "gap_safe": fl[K.F_GS], "a_applied": fl[K.F_A],
+                "violation": bo[K.B_VIOLATION], "modes": self.modes(), "fallbacks": self.fallbacks(), "rewards": terms}
+        return reward, terminated, truncated, self._ended_info(info, ended, n_ended)
+
+    def _ended_info(self, info: dict, ended: np.ndarray, n_ended: int) -> dict:
+        """``info`` with ``"final"``: the final info of each of the first ``n_ended`` scenes in
+        ``ended`` (their episodes ended this step, now marked done)."""
         if n_ended:
             ended = ended[:n_ended]
             info["final"] = {int(r): self._final(int(r)) for r in ended}
             self.done[ended] = True
         else:
             info["final"] = {}
-        return reward, terminated, truncated, info
+        return info
+
+    # positions in laws_step_finish's arguments (step()'s list) of those that change every step
+    _L_EGO, _L_OBS_NOW, _L_X, _L_V, _L_A, _L_F, _L_I, _L_OBS_ALL, _L_ACTIVE, _L_OBS, _L_OBS32 = (
+        0, 1, 10, 11, 12, 25, 26, 27, 43, 59, 62)
+
+    def _step_prepared(self, a_des: np.ndarray, prepared: tuple):
+        """:meth:`step` of the single env (``arrays=False``) once a step of this episode has
+        taken the drivers-inside path (:func:`acc_gym.envs._kernel.laws_step_finish`): its
+        argument list again, with the entries that change every step replaced (the ego's
+        command, the current state's observations and arrays, the buffers it moves into, which
+        scenes are active, the fresh observation arrays) -- the same call, without the
+        per-step assembly. Made again after every :meth:`reset_rows` and change of the plan."""
+        (_, args, rows3, names, reward, terminated, truncated, ended, obs_shape, obs_dtype, obs32_shape) = prepared
+        w = self.world
+        buf = w.reused_buffers()
+        obs_all = buf.obs
+        obs_all.setflags(write=True)
+        w.observation_array(0)
+        obs = np.empty(obs_shape, dtype=obs_dtype)
+        obs32 = np.empty(obs32_shape, dtype=np.float32) if obs_dtype is float else obs
+        args[self._L_EGO] = a_des
+        args[self._L_OBS_NOW] = w._obs
+        args[self._L_X], args[self._L_V], args[self._L_A] = w.x, w.v, w.a
+        args[self._L_F], args[self._L_I], args[self._L_OBS_ALL] = buf.F, buf.I, obs_all
+        args[self._L_ACTIVE] = ~self.done
+        args[self._L_OBS], args[self._L_OBS32] = obs, obs32
+        n_rows, n_ended = K.laws_step_finish(*args)
+        if n_rows < 0:
+            obs_all.setflags(write=False)
+            check_finite("ego_a_des", a_des)  # raises, naming the value, as decide() does (nothing moved)
+        w.adopt_buffers(buf)
+        self.last_obs = obs32
+        self.last_rows = rows3
+        self.last_term_names = names
+        return reward, terminated, truncated, self._ended_info({}, ended, n_ended)
 
     def _step_plan(self) -> tuple:
         """What a step needs that changes only with :attr:`reward_fn` and :attr:`obs_bounds`

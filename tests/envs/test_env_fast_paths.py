@@ -172,6 +172,49 @@ def test_fused_core_step_equals_the_separate_kernels(env_id, settings, drivers_i
     assert n_final >= 6  # episodes ended (and restarted) along the way
 
 
+@pytest.mark.parametrize("env_id, settings", [
+    ("acc_gym/SingleLane-v1", {"drivers": "idm"}), ("acc_gym/SingleLane-v0", {"drivers": "idm"}),
+    ("acc_gym/NCAP-v1", {}), ("acc_gym/CarFollowing-v0", {}),
+], ids=["singlelane-v1-idm", "singlelane-v0-idm", "ncap-v1", "carfollowing-v0"])
+def test_the_single_envs_prepared_step_equals_the_assembled_one(env_id, settings):
+    """Once an episode's step has taken the drivers-inside call, the single env reuses its
+    argument list with the per-step entries replaced (``EpisodeBatch._step_prepared``): over
+    episodes, resets, a pickled copy and a NaN action, everything equals an env whose list is
+    assembled afresh every step -- observations, rewards, flags, infos, records -- bit for bit."""
+    import pickle
+
+    envs = [gymnasium.make(env_id, **settings) for _ in range(2)]
+    fast, ref = (e.unwrapped for e in envs)
+    rng = np.random.default_rng(4)
+    for e in envs:
+        e.reset(seed=11)
+    used = 0
+    for k in range(400):
+        if k == 150:
+            envs[0] = pickle.loads(pickle.dumps(envs[0]))
+            fast = envs[0].unwrapped
+        a = rng.uniform(-1.0, 1.0, 1).astype(np.float32)
+        ref.core._prepared = None  # the reference assembles its list every step
+        out = [e.step(a) for e in envs]
+        used += fast.core._prepared is not None
+        (o1, r1, te1, tr1, i1), (o2, r2, te2, tr2, i2) = out
+        assert np.array_equal(o1, o2) and r1 == r2 and te1 == te2 and tr1 == tr2, k
+        assert i1.keys() == i2.keys() and all(np.array_equal(i1[key], i2[key]) for key in i1 if key != "report")
+        assert i1.get("report") == i2.get("report")
+        assert np.array_equal(fast.core._rec_arr, ref.core._rec_arr)
+        if te1 or tr1:
+            for e in envs:
+                e.reset()
+    assert used > 300  # the prepared list served most steps
+    envs[0].reset(seed=3)
+    envs[0].step(np.zeros(1, dtype=np.float32))
+    k = fast.core.world.k.copy()
+    assert fast.core._prepared is not None
+    with pytest.raises(ValueError, match="ego_a_des"):  # named, and nothing moved
+        fast.core.step(np.array([np.nan]), arrays=False)
+    assert np.array_equal(fast.core.world.k, k)
+
+
 def test_scenario_sampler_draws_the_index_rng_choice_draws():
     """The sampler's cached cumulative sums give ``rng.choice(n, p=p)``'s index with the
     same draw (generator state after equal), for the weighted single-lane mix."""
