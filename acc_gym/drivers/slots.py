@@ -55,6 +55,7 @@ class SlotDrivers:
         self._profile = np.zeros((self.n, 1))  # speeds at steps 0, 1, ... (held after the end)
         self._clock = np.zeros(self.n, dtype=np.int64)
         self._baseline = BaselineRows(self.n, self.dt)
+        self.assignments = 0  # drivers given so far (assign): a caller keeping compiled_laws()' arguments checks it
         self.info: dict[str, np.ndarray] = {}
         self.fallbacks = np.zeros(self.n, dtype=np.int64)  # solver fallbacks in the current episode
         self._no_modes = np.full(self.n, -1, dtype=np.int64)  # info["mode"] of a step without MPC drivers
@@ -65,6 +66,7 @@ class SlotDrivers:
         """Give scene ``row`` the driver ``spec`` (a :class:`~acc_gym.scenarios.spec.DriverSpec`
         or None for an absent vehicle) and restart it."""
         row = int(row)
+        self.assignments += 1
         self._baseline.remove(row)
         self._clock[row] = 0
         self.fallbacks[row] = 0

@@ -254,6 +254,7 @@ class EpisodeBatch:
         step_plan = self._step_plan()
         prepared = self._prepared
         if (prepared is not None and prepared[0] is step_plan and not arrays and active is None
+                and prepared[-1] == self.drivers.assignments  # no driver given since (a reset, or by hand)
                 and type(a_des) is np.ndarray and a_des.dtype == np.float64 and a_des.shape == (n,)):
             return self._step_prepared(a_des, prepared)
         (code, names, weights, a_comfort, grace, low, high, m0, extra, f_low, f_high, obs_range, v2v,
@@ -308,7 +309,8 @@ class EpisodeBatch:
                 if not arrays and own_active and m0 is not None:
                     # the single env's next steps until a reset: these arguments with the per-step ones replaced
                     self._prepared = (step_plan, args, (fl, bo, terms_arr), names, reward, terminated, truncated,
-                                      ended, (n, m0), np.float32 if not extra else float, (n, m0 + extra))
+                                      ended, (n, m0), np.float32 if not extra else float, (n, m0 + extra),
+                                      self.drivers.assignments)
             else:
                 n_rows, n_ended = K.step_finish(a_all, *world_and_scenes)
                 w.adopt(F, I, obs_all)
@@ -365,8 +367,9 @@ class EpisodeBatch:
         argument list again, with the entries that change every step replaced (the ego's
         command, the current state's observations and arrays, the buffers it moves into, which
         scenes are active, the fresh observation arrays) -- the same call, without the
-        per-step assembly. Made again after every :meth:`reset_rows` and change of the plan."""
-        (_, args, rows3, names, reward, terminated, truncated, ended, obs_shape, obs_dtype, obs32_shape) = prepared
+        per-step assembly. Made again after every :meth:`reset_rows`, change of the plan and
+        driver given to a slot (:attr:`SlotDrivers.assignments <acc_gym.drivers.slots.SlotDrivers.assignments>`)."""
+        (_, args, rows3, names, reward, terminated, truncated, ended, obs_shape, obs_dtype, obs32_shape, _) = prepared
         w = self.world
         buf = w.reused_buffers()
         obs_all = buf.obs

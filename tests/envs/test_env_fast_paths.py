@@ -213,6 +213,11 @@ def test_the_single_envs_prepared_step_equals_the_assembled_one(env_id, settings
     with pytest.raises(ValueError, match="ego_a_des"):  # named, and nothing moved
         fast.core.step(np.array([np.nan]), arrays=False)
     assert np.array_equal(fast.core.world.k, k)
+    fast.core.slots[0].assign(0, None)  # a driver changed by hand mid-episode: the list is not reused
+    calls = []
+    fast.core._step_prepared = lambda *args: calls.append(args)
+    fast.core.step(np.zeros(1), arrays=False)
+    assert not calls and fast.core._prepared is not None  # assembled again, and kept for the next steps
 
 
 def test_scenario_sampler_draws_the_index_rng_choice_draws():
