@@ -449,16 +449,22 @@ def test_observe_all_called_directly():
 
 
 # ----------------------------------------------------------------------------- fused move, compiled reset
-@pytest.mark.parametrize("seed", range(4))
-def test_fused_move_equals_move(seed):
-    """``decide`` + the one-call ``_world_kernel.move`` + ``adopt`` (``move``, and the environment
-    core's path) leave exactly the state the separate kernels (``move_reference``: advance,
-    then refresh) leave, step after step; ``step`` is ``decide`` + ``move``."""
+def twin_worlds(seed: int) -> list:
+    """Two worlds of three slots in the same random state (:func:`randomise` with ``seed``)."""
     worlds = []
     for _ in range(2):
         w = make_world(3)
         randomise(w, np.random.default_rng(seed))
         worlds.append(w)
+    return worlds
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_fused_move_equals_move(seed):
+    """``decide`` + the one-call ``_world_kernel.move`` + ``adopt`` (``move``, and the environment
+    core's path) leave exactly the state the separate kernels (``move_reference``: advance,
+    then refresh) leave, step after step; ``step`` is ``decide`` + ``move``."""
+    worlds = twin_worlds(seed)
     ref, fused = worlds
     rng = np.random.default_rng(100 + seed)
     for _ in range(25):
@@ -498,12 +504,7 @@ def test_reused_buffers_leave_the_state_fresh_buffers_leave(seed):
     step; the set handed out never holds the current state, consecutive steps use different
     sets, and a pickled copy mid-run continues identically (pickle copies a view's data: the
     copy's state views are made again from its own buffers)."""
-    worlds = []
-    for _ in range(2):
-        w = make_world(3)
-        randomise(w, np.random.default_rng(seed))
-        worlds.append(w)
-    ref, reused = worlds
+    ref, reused = twin_worlds(seed)
     rng = np.random.default_rng(200 + seed)
     last = None
     for k in range(20):
