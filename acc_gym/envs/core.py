@@ -306,7 +306,9 @@ class EpisodeBatch:
                     obs_all.setflags(write=False)
                     check_finite("ego_a_des", a_des)  # raises, naming the value, as decide() does (nothing moved)
                 w.adopt_buffers(buf)
-                if not arrays and own_active and m0 is not None:
+                if (not arrays and own_active and m0 is not None and args[self._L_EGO] is a_des
+                        and args[self._L_F] is F and args[self._L_OBS_ALL] is obs_all and args[self._L_ACTIVE] is active
+                        and args[self._L_OBS] is obs and args[self._L_OBS32] is obs32):  # (the positions below hold)
                     # the single env's next steps until a reset: these arguments with the per-step ones replaced
                     self._prepared = (step_plan, args, (fl, bo, terms_arr), names, reward, terminated, truncated,
                                       ended, (n, m0), np.float32 if not extra else float, (n, m0 + extra),
