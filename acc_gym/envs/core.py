@@ -301,11 +301,7 @@ class EpisodeBatch:
             if laws is not None:  # drivers of one compiled call too: they decide inside it
                 w.observation_array(0)  # every slot's observations of the state, (S, 8, B), made if not yet
                 args = [a_des, w._obs, *laws, *world_and_scenes]
-                n_rows, n_ended = K.laws_step_finish(*args)
-                if n_rows < 0:
-                    obs_all.setflags(write=False)
-                    check_finite("ego_a_des", a_des)  # raises, naming the value, as decide() does (nothing moved)
-                w.adopt_buffers(buf)
+                n_ended = self._laws_call(args, buf)
                 if (not arrays and own_active and m0 is not None and args[self._L_EGO] is a_des
                         and args[self._L_F] is F and args[self._L_OBS_ALL] is obs_all and args[self._L_ACTIVE] is active
                         and args[self._L_OBS] is obs and args[self._L_OBS32] is obs32):  # (the positions below hold)
@@ -363,6 +359,17 @@ class EpisodeBatch:
     _L_EGO, _L_OBS_NOW, _L_X, _L_V, _L_A, _L_F, _L_I, _L_OBS_ALL, _L_ACTIVE, _L_OBS, _L_OBS32 = (
         0, 1, 10, 11, 12, 25, 26, 27, 43, 59, 62)
 
+    def _laws_call(self, args: list, buf) -> int:
+        """:func:`acc_gym.envs._kernel.laws_step_finish` on ``args``, then the world takes the
+        state it wrote into ``buf``; a non-finite ego command raises before anything moves,
+        naming it as :meth:`SingleLaneWorld.decide` does. Returns how many episodes ended."""
+        n_rows, n_ended = K.laws_step_finish(*args)
+        if n_rows < 0:
+            buf.obs.setflags(write=False)
+            check_finite("ego_a_des", args[self._L_EGO])  # raises, naming the value (nothing moved)
+        self.world.adopt_buffers(buf)
+        return n_ended
+
     def _step_prepared(self, a_des: np.ndarray, prepared: tuple):
         """:meth:`step` of the single env (``arrays=False``) once a step of this episode has
         taken the drivers-inside path (:func:`acc_gym.envs._kernel.laws_step_finish`): its
@@ -385,11 +392,7 @@ class EpisodeBatch:
         args[self._L_F], args[self._L_I], args[self._L_OBS_ALL] = buf.F, buf.I, obs_all
         args[self._L_ACTIVE] = ~self.done
         args[self._L_OBS], args[self._L_OBS32] = obs, obs32
-        n_rows, n_ended = K.laws_step_finish(*args)
-        if n_rows < 0:
-            obs_all.setflags(write=False)
-            check_finite("ego_a_des", a_des)  # raises, naming the value, as decide() does (nothing moved)
-        w.adopt_buffers(buf)
+        n_ended = self._laws_call(args, buf)
         self.last_obs = obs32
         self.last_rows = rows3
         self.last_term_names = names

@@ -405,13 +405,21 @@ class BivariateNormal:
             out[filled:filled + take] = ok[:take]
             filled, drawn, accepted = filled + take, drawn + batch, accepted + len(ok)
             if filled < n and drawn >= 4 * self._batch_max and accepted / drawn < _MIN_ACCEPTANCE:
-                raise RuntimeError(f"BivariateNormal truncated to low={self.low}, high={self.high}: acceptance "
-                                   f"{accepted / drawn:.2g} < {_MIN_ACCEPTANCE:g} after {drawn} draws; the box "
-                                   "holds almost no probability")
+                raise self._too_rare(accepted, drawn)
         if filled < n:
-            raise RuntimeError(f"BivariateNormal truncated to low={self.low}, high={self.high}: only {filled} of "
-                               f"{n} samples after {self.max_rounds} rounds (acceptance {accepted / drawn:.2g})")
+            raise self._too_few(filled, n, accepted, drawn)
         return out
+
+    def _too_rare(self, accepted: int, drawn: int) -> RuntimeError:
+        """The rejection loop's error when the box holds almost no probability."""
+        return RuntimeError(f"BivariateNormal truncated to low={self.low}, high={self.high}: acceptance "
+                            f"{accepted / drawn:.2g} < {_MIN_ACCEPTANCE:g} after {drawn} draws; the box holds "
+                            "almost no probability")
+
+    def _too_few(self, filled: int, n: int, accepted: int, drawn: int) -> RuntimeError:
+        """The rejection loop's error when its rounds ran out."""
+        return RuntimeError(f"BivariateNormal truncated to low={self.low}, high={self.high}: only {filled} of {n} "
+                            f"samples after {self.max_rounds} rounds (acceptance {accepted / drawn:.2g})")
 
     def _first_inside(self, rng: np.random.Generator) -> np.ndarray:
         """:meth:`_rejection` of one pair (a scenario's draw), with the same batches, the same
@@ -436,11 +444,9 @@ class BivariateNormal:
             if ok.size:
                 return x[ok[0]].copy()
             drawn += batch
-            if drawn >= 4 * self._batch_max:
-                raise RuntimeError(f"BivariateNormal truncated to low={self.low}, high={self.high}: acceptance "
-                                   f"0 < {_MIN_ACCEPTANCE:g} after {drawn} draws; the box holds almost no probability")
-        raise RuntimeError(f"BivariateNormal truncated to low={self.low}, high={self.high}: only 0 of 1 samples "
-                           f"after {self.max_rounds} rounds (acceptance 0)")
+            if drawn >= 4 * self._batch_max:  # nothing accepted: _rejection's condition
+                raise self._too_rare(0, drawn)
+        raise self._too_few(0, 1, 0, drawn)
 
     def _draw_from(self, z: np.ndarray, l00: float, l10: float, l11: float) -> np.ndarray:
         """:meth:`_draw`'s pairs from given standard normals ``z`` ``(n, 2)``."""
