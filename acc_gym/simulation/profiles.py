@@ -9,11 +9,27 @@ acceleration that reaches the profile's next speed, which the model then limits.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from acc_gym._validation import check_finite
+
+
+_F64 = np.dtype(np.float64)
+_SHORT = 64  # [breakpoints] profiles up to this long are checked as Python floats (scripted ones have a few)
+
+
+def _short_valid(times: list, speeds: list) -> bool:
+    """:class:`SpeedProfile`'s checks on plain floats: every time and speed finite, the
+    times strictly increasing, the speeds >= 0 (False: the numpy checks then raise)."""
+    prev = -math.inf
+    for t, v in zip(times, speeds):
+        if not (t - t == 0.0 and t > prev and v - v == 0.0 and v >= 0.0):
+            return False
+        prev = t
+    return True
 
 
 @dataclass(frozen=True)
@@ -24,6 +40,10 @@ class SpeedProfile:
     speeds: np.ndarray  # (K,) or (B, K) [m/s], >= 0
 
     def __post_init__(self) -> None:
+        t, v = self.times, self.speeds
+        if (type(t) is np.ndarray and type(v) is np.ndarray and t.dtype == _F64 and v.dtype == _F64 and t.ndim == 1
+                and t.shape == v.shape and 0 < t.shape[0] <= _SHORT and _short_valid(t.tolist(), v.tolist())):
+            return  # a short 1-D float64 profile that passes (a scenario's, at every reset): kept as given, as below
         t = np.asarray(self.times, dtype=float)
         v = np.asarray(self.speeds, dtype=float)
         check_finite("SpeedProfile.times", t)
