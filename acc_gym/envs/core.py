@@ -19,7 +19,7 @@ from acc_gym.envs import _kernel as K
 from acc_gym.envs.config import EnvConfig
 from acc_gym.envs.observation import B0, B1, append_features, feature_bounds
 from acc_gym.envs.reward import CriteriaReward, MarginReward, StepIndicators
-from acc_gym.evaluation.scoring import judged_tau1, score_episode
+from acc_gym.evaluation.scoring import judged_tau1, score_record
 from acc_gym.evaluation.trace import EgoTrace
 from acc_gym.scenarios.spec import Scenario
 from acc_gym.scenarios.world import ABSENT_X, scene_arrays
@@ -452,11 +452,10 @@ class EpisodeBatch:
         return fb[:self.n] + fb[self.n:]
 
     def _final(self, row: int) -> dict:
-        k = int(self.world.k[row])
-        rec = dict(zip(_RECORD, self._rec_arr[:, row, :k + 1].copy()))
+        # the record scored where it is (score_record: as score_episode of self.trace(row))
         sc = self.scenarios[row]
-        trace = EgoTrace(**rec, set_speed=sc.set_speed, time_gap=sc.time_gap, declared_time_gap=self.declared[row])
-        report = score_episode(trace, self.config.scoring)
+        report = score_record(self._rec_arr[:, row], int(self.world.k[row]) + 1, sc.set_speed, sc.time_gap,
+                              self.declared[row], self.config.scoring)
         return {"score": report.score, "qualified": report.qualified, "report": report.to_dict(),
                 "scenario": sc.id, "scenario_seed": sc.seed, "episode_return": float(self.episode_return[row])}
 

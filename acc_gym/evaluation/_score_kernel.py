@@ -28,6 +28,7 @@ import numba
 import numpy as np
 
 from acc_gym.evaluation.metrics import _gradient
+from acc_gym.evaluation.trace import _columns_valid
 
 # the config's row of score()'s parameter vector (acc_gym.evaluation.scoring._kernel_params builds it)
 (P_B0, P_B1, P_BAND_WIDTH, P_STEADY_DV, P_MOVING, P_TRANSIENT, P_SENSOR, P_RESPONSE_DECEL, P_STOP_SPEED,
@@ -417,3 +418,26 @@ def score(t, v, a, gap, v_lead, lead_id, a_y, d2, d3, p, tau1, grace, set_speed,
     out[O_TRANSIENTS] = n_transients
     out[O_MIN_GAP] = min_gap
     out[O_DURATION] = t[n - 1] - t[0]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def score_record(rec, n, p, tau1, grace, set_speed, out):  # pragma: no cover - compiled
+    """:func:`score` of the first ``n`` samples of a record whose rows are the
+    :class:`~acc_gym.evaluation.trace.EgoTrace` columns in their order (``t, v, a, gap,
+    v_lead, a_lead, lead_id, a_y, d2, d3``, the environments' episode record), read where
+    they are, when they pass the trace's column checks as given
+    (:func:`acc_gym.evaluation.trace._columns_valid`). Returns whether they did; when not,
+    nothing is written (the caller makes the trace, whose checks convert or raise)."""
+    t = rec[0, :n]
+    v = rec[1, :n]
+    a = rec[2, :n]
+    gap = rec[3, :n]
+    v_lead = rec[4, :n]
+    lead_id = rec[6, :n]
+    a_y = rec[7, :n]
+    d2 = rec[8, :n]
+    d3 = rec[9, :n]
+    if not _columns_valid(t, v, a, gap, v_lead, rec[5, :n], lead_id, a_y, d2, d3):
+        return False
+    score(t, v, a, gap, v_lead, lead_id, a_y, d2, d3, p, tau1, grace, set_speed, out)
+    return True

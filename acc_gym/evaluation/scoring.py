@@ -127,7 +127,7 @@ from acc_gym._validation import from_mapping
 from acc_gym.evaluation import _score_kernel as _K
 from acc_gym.evaluation.indicators import comfort_j, efficiency_u, gap_safe, in_band, safety_q
 from acc_gym.evaluation.metrics import MIN_DEVIATION, STEADY_ACCEL, STEADY_TIME, damping_ratio, extra_metrics
-from acc_gym.evaluation.trace import _EMPTY, _LANE_CENTRED, EgoTrace
+from acc_gym.evaluation.trace import _ARRAY_COLUMNS, _EMPTY, _LANE_CENTRED, EgoTrace, _scalars_valid
 
 DEFAULT_TAU1 = 1.5  # [s] when neither the config nor the trace gives one
 SAFETY_RULES = ("proper-response", "literal")
@@ -378,15 +378,50 @@ def score_episode(trace: EgoTrace, config: ScoringConfig | None = None) -> Episo
             return score_episode_reference(trace, config)
     if shape[0] < 2:
         return score_episode_reference(trace, config)
-    p, safety_rule, band_rule, share_needed = _kernel_params(cfg)
+    kp = _kernel_params(cfg)
     tau1 = float(judged_tau1(trace.time_gap, trace.declared_time_gap, cfg))
     grace = float(cfg.response_time) if cfg.response_time is not None else tau1
     out = np.empty(_K.N_OUT)
     _K.score(t, cols[1], cols[2], cols[3], cols[4], _EMPTY if cols[5] is None else cols[5],
              _EMPTY if cols[6] is None else cols[6], _EMPTY if cols[7] is None else cols[7],
-             _EMPTY if cols[8] is None else cols[8], p, tau1, grace,
+             _EMPTY if cols[8] is None else cols[8], kp[0], tau1, grace,
              np.nan if set_speed is None else float(set_speed), out)
-    o = out.tolist()
+    return _report(out.tolist(), cfg, kp, tau1)
+
+
+def score_record(rec: np.ndarray, n: int, set_speed: float | None = None, time_gap: float | None = None,
+                 declared_time_gap: float | None = None, config: ScoringConfig | None = None) -> EpisodeReport:
+    """:func:`score_episode` of the trace of the first ``n`` samples of ``rec``, a float64
+    array whose rows are :class:`EgoTrace`'s columns in their order (``t, v, a, gap, v_lead,
+    a_lead, lead_id, a_y, d2, d3``: the environments' episode record), without making the
+    trace: the trace's checks and the score in one compiled call
+    (:func:`acc_gym.evaluation._score_kernel.score_record`), reading the record where it is.
+
+    The same report as ``score_episode(EgoTrace(**dict(zip(columns, rec[:, :n])), set_speed=...,
+    time_gap=..., declared_time_gap=...), config)`` (``tests/evaluation/test_scoring.py``
+    compares the two), which is what a record the checks would change or reject, or values
+    off the compiled path's types, take: it converts, or raises naming the bad value.
+    """
+    cfg = config if config is not None else _DEFAULT_CONFIG
+    if (type(rec) is np.ndarray and rec.dtype is _F64 and rec.ndim == 2 and rec.shape[0] == len(_ARRAY_COLUMNS)
+            and type(n) is int and 2 <= n <= rec.shape[1] and type(cfg) is ScoringConfig
+            and (set_speed is None or type(set_speed) in _SCALAR_TYPES)
+            and _scalars_valid(set_speed, time_gap, declared_time_gap)):
+        kp = _kernel_params(cfg)
+        tau1 = float(judged_tau1(time_gap, declared_time_gap, cfg))
+        grace = float(cfg.response_time) if cfg.response_time is not None else tau1
+        out = np.empty(_K.N_OUT)
+        if _K.score_record(rec, n, kp[0], tau1, grace, np.nan if set_speed is None else float(set_speed), out):
+            return _report(out.tolist(), cfg, kp, tau1)
+    trace = EgoTrace(**dict(zip(_ARRAY_COLUMNS, np.asarray(rec)[:, :n].copy())), set_speed=set_speed,
+                     time_gap=time_gap, declared_time_gap=declared_time_gap)
+    return score_episode(trace, config)
+
+
+def _report(o: list, cfg: ScoringConfig, kp: tuple, tau1: float) -> EpisodeReport:
+    """The report of the compiled score's outputs ``o`` (``out.tolist()``) under ``cfg``
+    (``kp``: :func:`_kernel_params`), judged at ``tau1``."""
+    _, safety_rule, band_rule, share_needed = kp
     violations = int(o[_K.O_VIOLATIONS])
     min_q = o[_K.O_MIN_Q]
     collision = o[_K.O_COLLISION] != 0.0

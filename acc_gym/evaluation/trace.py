@@ -67,6 +67,19 @@ def _all_finite(col):  # pragma: no cover - compiled
         if not math.isfinite(col[i]):
             return False
     return True
+
+
+def _scalars_valid(*values) -> bool:
+    """:class:`EgoTrace`'s per-episode values (:data:`_SCALARS`) as its checks accept them:
+    each None or a finite number > 0."""
+    for value in values:
+        if value is None or (type(value) is float and 0.0 < value < math.inf):  # a plain float: no numpy
+            continue
+        if not (np.isfinite(value) and value > 0):
+            return False
+    return True
+
+
 _LANE_CENTRED = Road(3.75, 1).d2(0.0, VEHICLE_WIDTH)  # [m] D2 = D3 of a lane-centred car, paper 003's road
 
 
@@ -197,12 +210,8 @@ class EgoTrace:
         for c in cols:
             if c is not None and not (type(c) is np.ndarray and c.dtype == np.float64 and c.shape == (n,)):
                 return False
-        for name in _SCALARS:
-            value = getattr(self, name)
-            if value is None or (type(value) is float and 0.0 < value < math.inf):  # a plain float: no numpy
-                continue
-            if not (np.isfinite(value) and value > 0):
-                return False
+        if not _scalars_valid(self.set_speed, self.time_gap, self.declared_time_gap):
+            return False
         empty = _EMPTY
         return bool(_columns_valid(*(empty if c is None else c for c in cols)))
 

@@ -22,6 +22,7 @@ from acc_gym.drivers import ACC, ACCParams
 from acc_gym.evaluation import EgoTrace, ScoringConfig, scoring
 from acc_gym.evaluation import _score_kernel as K
 from acc_gym.evaluation.scoring import score_episode, score_episode_reference
+from acc_gym.evaluation.trace import _ARRAY_COLUMNS, _LANE_CENTRED
 
 CONFIGS = {
     "default": ScoringConfig(),
@@ -406,3 +407,71 @@ def test_pairwise_mean_equals_numpy_mean():
         lo = int(rng.integers(0, 4))
         y = rng.normal(size=2 * (n + lo))[::2]  # strided, from an offset
         assert K.mean(y, lo, n) == float(np.mean(y[lo:lo + n])), n
+
+
+# ---------------------------------------------------------------- a record scored where it is (score_record)
+def _as_record(trace, scenes=3, row=1, spare=4):
+    """``trace``'s columns as the rows of an environment's record: scene ``row`` of a
+    ``(columns, scenes, steps)`` array with steps beyond the episode (filled with NaN, which
+    the score must not read)."""
+    n = trace.n
+    rec = np.full((len(_ARRAY_COLUMNS), scenes, n + spare), np.nan)
+    for i, name in enumerate(_ARRAY_COLUMNS):
+        col = getattr(trace, name)
+        rec[i, row, :n] = col if col is not None else {"a_lead": 0.0, "lead_id": -1.0}.get(name, _LANE_CENTRED)
+    return rec[:, row]
+
+
+def test_the_record_rows_are_the_environments_record():
+    from acc_gym.envs import _kernel as env_kernel
+
+    assert env_kernel.RECORD == _ARRAY_COLUMNS
+
+
+def test_a_record_scores_as_its_trace(env_episodes, monkeypatch):
+    """score_record of an environment's record (a strided view, steps beyond the episode
+    unread) gives score_episode's report of the trace, in the compiled call."""
+    def refuse(*args, **kw):
+        raise AssertionError("the trace path was taken")
+
+    records = [(name, trace, _as_record(trace)) for name, trace, _, _ in env_episodes]
+    assert not records[0][2].flags.c_contiguous
+    with monkeypatch.context() as m:
+        m.setattr(scoring, "score_episode", refuse)
+        fast = {(name, cfg, k): scoring.score_record(rec, trace.n, *scalars, CONFIGS[cfg])
+                for name, trace, rec in records for cfg in ("default", "literal", "no-clip", "response-time")
+                for k, scalars in enumerate([(trace.set_speed, trace.time_gap, trace.declared_time_gap),
+                                             (None, trace.time_gap, 0.9), (trace.set_speed, None, 2.5)])}
+    for name, trace, rec in records:
+        for cfg in ("default", "literal", "no-clip", "response-time"):
+            for k, changes in enumerate([{}, dict(set_speed=None, declared_time_gap=0.9),
+                                         dict(time_gap=None, declared_time_gap=2.5)]):
+                assert_same_report(fast[name, cfg, k], score_episode(dataclasses.replace(trace, **changes),
+                                                                     CONFIGS[cfg]))
+        assert scoring.score_record(rec, trace.n - 1).to_dict() == score_episode(
+            EgoTrace(**{c: getattr(trace, c)[:-1] for c in _ARRAY_COLUMNS})).to_dict()  # fewer samples
+
+
+def test_a_record_the_checks_change_or_reject_takes_the_trace():
+    """What the trace's checks would convert (a lead speed without a lead) is scored as the
+    trace converts it; what they reject raises their error, naming the value."""
+    tr = EDGE_CASES["dip-5"]
+    rec = _as_record(tr)
+    n = tr.n
+    no_lead = rec.copy()
+    no_lead[3, 5:9] = np.inf  # no vehicle ahead for four samples, its speed still written
+    ref = score_episode(EgoTrace(**dict(zip(_ARRAY_COLUMNS, no_lead[:, :n].copy())), set_speed=tr.set_speed))
+    assert ref.to_dict() == scoring.score_record(no_lead, n, tr.set_speed).to_dict()
+    bad = rec.copy()
+    bad[1, 7] = np.nan
+    with pytest.raises(ValueError, match="'v' is NaN at sample 7"):
+        scoring.score_record(bad, n)
+    with pytest.raises(ValueError, match="at least 2 samples, got 1"):
+        scoring.score_record(rec, 1)
+    with pytest.raises(ValueError, match="time_gap must be > 0, got -1.0"):
+        scoring.score_record(rec, n, time_gap=-1.0)
+    # a set speed off the compiled path's types, a list of lists: the trace's path, the same report
+    same_value(scoring.score_record(rec, n, np.float32(24.0)).to_dict(),
+               score_episode(EgoTrace(**dict(zip(_ARRAY_COLUMNS, rec[:, :n].copy())),
+                                      set_speed=np.float32(24.0))).to_dict(), "float32 set speed")
+    assert scoring.score_record(rec[:, :n].tolist(), n).to_dict() == scoring.score_record(rec, n).to_dict()
