@@ -69,6 +69,16 @@ def json_safe(x):
     return _json_value(x)
 
 
+def json_leaf(x):
+    """:func:`json_safe` of one value, by its exact type first (a report's leaves, one at a time)."""
+    t = type(x)
+    if t is float:
+        return x if x - x == 0.0 else (None if x != x else str(x))
+    if t is int or t is bool or t is str or x is None:
+        return x
+    return json_safe(x)
+
+
 def json_safe_reference(x):
     """:func:`json_safe` by the general checks alone (its definition)."""
     if isinstance(x, dict):

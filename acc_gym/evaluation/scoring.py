@@ -122,7 +122,7 @@ from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 
-from acc_gym._io import json_safe
+from acc_gym._io import json_leaf, json_safe
 from acc_gym._validation import from_mapping
 from acc_gym.evaluation import _score_kernel as _K
 from acc_gym.evaluation.indicators import comfort_j, efficiency_u, gap_safe, in_band, safety_q
@@ -244,16 +244,25 @@ class EpisodeReport:
         raise KeyError(name)
 
     def to_dict(self) -> dict:
-        """JSON-safe (NaN -> None, infinities -> ``"inf"``; :func:`acc_gym._io.json_safe`)."""
-        out = json_safe({
-            "score": self.score, "qualified": self.qualified, "r1": self.r1, "r2": self.r2, "u": self.u,
-            "j_x": self.j_x, "j_y": self.j_y, "tau1": self.tau1,
-            "items": {it.name: {"qualified": it.qualified, "applicable": it.applicable, "points": it.points,
-                                "requirement": it.requirement, **it.detail} for it in self.items},
-            "metrics": self.metrics,
-        })
-        out["config"] = self.config.to_json_dict()
-        return out
+        """JSON-safe (NaN -> None, infinities -> ``"inf"``): :func:`acc_gym._io.json_safe` of
+        ``{"score", "qualified", "r1", "r2", "u", "j_x", "j_y", "tau1", "items": {name:
+        {"qualified", "applicable", "points", "requirement", **detail}}, "metrics"}`` and then
+        ``"config"`` (:meth:`ScoringConfig.to_json_dict`), built leaf by leaf without the
+        nested dicts made twice (every ended episode's info holds one;
+        ``tests/evaluation/test_score_kernel.py`` compares it with that definition)."""
+        leaf = json_leaf
+        items = {}
+        for it in self.items:
+            d = {"qualified": leaf(it.qualified), "applicable": leaf(it.applicable), "points": leaf(it.points),
+                 "requirement": leaf(it.requirement)}
+            for k, v in it.detail.items():
+                d[k if type(k) is str else str(k)] = leaf(v)
+            items[it.name if type(it.name) is str else str(it.name)] = d
+        return {"score": leaf(self.score), "qualified": leaf(self.qualified), "r1": leaf(self.r1), "r2": leaf(self.r2),
+                "u": leaf(self.u), "j_x": leaf(self.j_x), "j_y": leaf(self.j_y), "tau1": leaf(self.tau1),
+                "items": items,
+                "metrics": {k if type(k) is str else str(k): leaf(v) for k, v in self.metrics.items()},
+                "config": self.config.to_json_dict()}
 
     def summary(self) -> str:
         lines = [f"score {self.score:.1f} / 100 ({'qualified' if self.qualified else 'NOT qualified'})"]

@@ -10,6 +10,7 @@ close: the kernel reproduces numpy's order of operations and its pairwise summat
 """
 
 import dataclasses
+import json
 import math
 
 import gymnasium
@@ -20,6 +21,7 @@ import acc_gym  # noqa: F401  (registers the environments)
 from acc_gym import scenarios
 from acc_gym.drivers import ACC, ACCParams
 from acc_gym.evaluation import EgoTrace, ScoringConfig, scoring
+from acc_gym._io import json_safe_reference
 from acc_gym.evaluation import _score_kernel as K
 from acc_gym.evaluation.scoring import score_episode, score_episode_reference
 from acc_gym.evaluation.trace import _ARRAY_COLUMNS, _LANE_CENTRED
@@ -475,3 +477,44 @@ def test_a_record_the_checks_change_or_reject_takes_the_trace():
                score_episode(EgoTrace(**dict(zip(_ARRAY_COLUMNS, rec[:, :n].copy())),
                                       set_speed=np.float32(24.0))).to_dict(), "float32 set speed")
     assert scoring.score_record(rec[:, :n].tolist(), n).to_dict() == scoring.score_record(rec, n).to_dict()
+
+
+def _to_dict_definition(rep):
+    """``EpisodeReport.to_dict``'s definition: json_safe of the report's fields, then its config's."""
+    out = json_safe_reference({
+        "score": rep.score, "qualified": rep.qualified, "r1": rep.r1, "r2": rep.r2, "u": rep.u,
+        "j_x": rep.j_x, "j_y": rep.j_y, "tau1": rep.tau1,
+        "items": {it.name: {"qualified": it.qualified, "applicable": it.applicable, "points": it.points,
+                            "requirement": it.requirement, **it.detail} for it in rep.items},
+        "metrics": rep.metrics})
+    out["config"] = rep.config.to_json_dict()
+    return out
+
+
+def _json_plain(x):
+    if isinstance(x, dict):
+        return all(type(k) is str and _json_plain(v) for k, v in x.items())
+    if isinstance(x, list):
+        return all(_json_plain(v) for v in x)
+    return x is None or type(x) in (bool, int, float, str) and (type(x) is not float or math.isfinite(x))
+
+
+def test_to_dict_is_its_definition(env_episodes):
+    """A report's dict, built leaf by leaf, is json_safe of its fields: the same keys in the same
+    order, the same values of the same types (ints stay ints, -0.0 stays -0.0), nothing numpy's,
+    no NaN or infinity -- for compiled reports and the reference's (numpy scalars in them)."""
+    reports = []
+    for _, trace, _, _ in env_episodes[::3]:
+        for cfg in ("default", "literal", "long-transient", "no-clip"):
+            reports += [score_episode(trace, CONFIGS[cfg]), score_episode_reference(trace, CONFIGS[cfg])]
+    reports += [score_episode(tr) for tr in EDGE_CASES.values()]
+    reports += [score_episode_reference(tr) for tr in EDGE_CASES.values()]
+    dumped = set()
+    for rep in reports:
+        d = rep.to_dict()
+        assert json.dumps(d) == json.dumps(_to_dict_definition(rep))
+        assert _json_plain(d), d
+        dumped.add(json.dumps(d))
+    text = "".join(dumped)
+    assert "null" in text and '"inf"' in text and "NaN" not in text  # NaN and infinities converted, as defined
+    assert any(not it.qualified for rep in reports for it in rep.items)
