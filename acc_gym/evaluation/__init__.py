@@ -14,11 +14,12 @@ explained in :mod:`acc_gym.evaluation.scoring`.
 from acc_gym.evaluation.indicators import (centre_to_gap, comfort_j, efficiency_u, gap_safe, in_band, safety_q,
                                            time_to_collision)
 from acc_gym.evaluation.metrics import damping_ratio, extra_metrics, speed_overshoot
-from acc_gym.evaluation.scoring import EpisodeReport, ItemResult, ScoringConfig, score_episode, score_world
+from acc_gym.evaluation.scoring import (EpisodeReport, ItemResult, ScoringConfig, score_episode, score_record,
+                                       score_world)
 from acc_gym.evaluation.trace import EgoTrace
 
 __all__ = [
     "EgoTrace", "EpisodeReport", "ItemResult", "ScoringConfig", "centre_to_gap", "comfort_j", "damping_ratio",
-    "efficiency_u", "extra_metrics", "gap_safe", "in_band", "safety_q", "score_episode", "score_world",
-    "speed_overshoot", "time_to_collision",
+    "efficiency_u", "extra_metrics", "gap_safe", "in_band", "safety_q", "score_episode", "score_record",
+    "score_world", "speed_overshoot", "time_to_collision",
 ]
