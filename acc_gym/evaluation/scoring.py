@@ -407,9 +407,11 @@ def score_record(rec: np.ndarray, n: int, set_speed: float | None = None, time_g
     (:func:`acc_gym.evaluation._score_kernel.score_record`), reading the record where it is.
 
     The same report as ``score_episode(EgoTrace(**dict(zip(columns, rec[:, :n])), set_speed=...,
-    time_gap=..., declared_time_gap=...), config)`` (``tests/evaluation/test_scoring.py``
+    time_gap=..., declared_time_gap=...), config)`` (``tests/evaluation/test_score_kernel.py``
     compares the two), which is what a record the checks would change or reject, or values
-    off the compiled path's types, take: it converts, or raises naming the bad value.
+    off the compiled path's types, take: it converts, or raises naming the bad value. A
+    record of another number of rows, or an ``n`` that is not a count of its samples, is an
+    error naming it.
     """
     cfg = config if config is not None else _DEFAULT_CONFIG
     if (type(rec) is np.ndarray and rec.dtype is _F64 and rec.ndim == 2 and rec.shape[0] == len(_ARRAY_COLUMNS)
@@ -422,8 +424,14 @@ def score_record(rec: np.ndarray, n: int, set_speed: float | None = None, time_g
         out = np.empty(_K.N_OUT)
         if _K.score_record(rec, n, kp[0], tau1, grace, np.nan if set_speed is None else float(set_speed), out):
             return _report(out.tolist(), cfg, kp, tau1)
-    trace = EgoTrace(**dict(zip(_ARRAY_COLUMNS, np.asarray(rec)[:, :n].copy())), set_speed=set_speed,
-                     time_gap=time_gap, declared_time_gap=declared_time_gap)
+    arr = np.asarray(rec, dtype=float)
+    if arr.ndim != 2 or arr.shape[0] != len(_ARRAY_COLUMNS):
+        raise ValueError(f"a record has one row per trace column {_ARRAY_COLUMNS}: shape ({len(_ARRAY_COLUMNS)}, "
+                         f"samples), got {arr.shape}")
+    if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or not 0 <= n <= arr.shape[1]:
+        raise ValueError(f"n must be a number of the record's samples, 0 to {arr.shape[1]}, got {n!r}")
+    trace = EgoTrace(**dict(zip(_ARRAY_COLUMNS, arr[:, :n].copy())), set_speed=set_speed, time_gap=time_gap,
+                     declared_time_gap=declared_time_gap)
     return score_episode(trace, config)
 
 

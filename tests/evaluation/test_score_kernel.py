@@ -477,6 +477,13 @@ def test_a_record_the_checks_change_or_reject_takes_the_trace():
                score_episode(EgoTrace(**dict(zip(_ARRAY_COLUMNS, rec[:, :n].copy())),
                                       set_speed=np.float32(24.0))).to_dict(), "float32 set speed")
     assert scoring.score_record(rec[:, :n].tolist(), n).to_dict() == scoring.score_record(rec, n).to_dict()
+    m = rec.shape[1]
+    with pytest.raises(ValueError, match=f"n must be a number of the record's samples, 0 to {m}, got {m + 1}"):
+        scoring.score_record(rec, m + 1)  # not cut short to the samples there are
+    with pytest.raises(ValueError, match="got 3.0"):
+        scoring.score_record(rec, 3.0)
+    with pytest.raises(ValueError, match=r"one row per trace column .* got \(11, "):
+        scoring.score_record(np.vstack([rec, rec[:1]]), n)  # a row too many is not dropped
 
 
 def _to_dict_definition(rep):
