@@ -70,8 +70,9 @@ class SlotDrivers:
         self._baseline.remove(row)
         self._clock[row] = 0
         self.fallbacks[row] = 0
+        self.kind[row] = 0  # absent until the new driver is in place (an assignment that raises leaves it so)
         if spec is None:
-            self.kind[row] = 0
+            pass
         elif spec.model == "mpc":
             params = spec.params_object()
             if self._mpc is None:
@@ -91,7 +92,6 @@ class SlotDrivers:
         else:
             self._baseline.assign(row, MODELS[spec.model], spec.params_object())
             self.kind[row] = 3
-            self._kinds_seen = None  # the path also depends on the baseline rows' delays
 
     def prepare(self, spec) -> bool:
         """Do ahead of :meth:`assign` what needs only the driver ``spec`` itself: an MPC
@@ -112,14 +112,17 @@ class SlotDrivers:
         # baseline rows restart with the clocks: a row's delay history is read by its clock
 
     def _path(self) -> str:
-        """How a step of the current kinds of rows runs, decided once per change of kinds:
+        """How a step of the current kinds of rows runs, decided again only when the kinds
+        change or the baseline rows come to have (or lose) a reaction delay or a law outside the
+        compiled loop (:meth:`BaselineRows.delayed`, :meth:`BaselineRows.all_compiled`):
         ``"mpc"`` (every row an MPC driver), ``"mpc+idle"`` (MPC drivers, absent vehicles
         and profiles: the MPC array path with the other rows skipped by its kernel), ``"baselines"``
         (baseline models without a reaction delay, absent vehicles and profiles: each model's
         compiled law on the rows as they are), ``"mixed"``."""
-        kinds = self.kind.tobytes()
-        if kinds != getattr(self, "_kinds_seen", None):
-            self._kinds_seen = kinds
+        b = self._baseline
+        seen = (self.kind.tobytes(), b.delayed(), b.all_compiled())  # what the path depends on
+        if seen != getattr(self, "_kinds_seen", None):
+            self._kinds_seen = seen
             counts = np.bincount(self.kind, minlength=4)  # rows per kind (none, mpc, profile, baseline)
             is_mpc = self.kind == 1
             if self._mpc is not None:  # the kernel skips the rows without an MPC driver (their output is unused)
@@ -133,10 +136,9 @@ class SlotDrivers:
                 self._path_cached = "mpc+idle"
                 self._is_mpc = is_mpc
                 self._idle = np.flatnonzero(~is_mpc)
-            elif not counts[1] and not self._baseline.delayed():
+            elif not counts[1] and not seen[1]:
                 self._path_cached = "baselines"
-                baseline = self.kind == _bk.BASELINE  # every baseline row's law compiled (a MODELS class): one call
-                self._compiled_laws = bool(np.all(self._baseline.law_kind[baseline] >= 0))
+                self._compiled_laws = seen[2]  # every baseline row's law compiled (a MODELS class): one call
             else:
                 self._path_cached = "mixed"
         return self._path_cached
@@ -307,6 +309,10 @@ class BaselineRows:
         self.law_kind = np.full(self.n, -1, dtype=np.int64)
         self.law_params = np.full((self.n, _bk.MAX_PARAMS), np.nan)
         self.law_two = np.zeros(self.n, dtype=np.bool_)
+        # rows with a driver that has a reaction delay, and with a law outside the compiled loop (law_kind -1):
+        # counted as rows are assigned and removed, so that delayed() and all_compiled() read no arrays
+        self._n_delayed = 0
+        self._n_uncompiled = 0
 
     def assign(self, row: int, cls, params) -> None:
         """Row ``row`` is driven by model ``cls`` with ``params`` (one vehicle's) from now.
@@ -350,9 +356,13 @@ class BaselineRows:
             full = {name: np.full(self.n, value) for name, value in values.items()}
             self._keys[key] = g
             self._models.append(cls(type(p)(**full, **dict(fixed)), n=self.n, dt=self.dt))
+        if self._group[row] >= 0:  # a row assigned again: its former driver no longer counts
+            self._uncount(row)
         self._group[row] = g
         self._delay[row] = delay
         self.law_kind[row] = _bk.KINDS[cls.name] if compiled else -1  # -1: act_world not used
+        self._n_delayed += int(self._delay[row] > 0)
+        self._n_uncompiled += int(self.law_kind[row] < 0)
         law = [np.nan if v is None else float(v) if type(v) in _PLAIN else float(np.asarray(v, dtype=float).ravel()[0])
                for v in (getattr(p, name) for name in cls._kernel_fields)]
         self.law_params[row, :len(law)] = law
@@ -365,15 +375,27 @@ class BaselineRows:
 
     def remove(self, row: int) -> None:
         if self._group[row] >= 0:
+            self._uncount(row)
             self._group[row] = -1
             self._delay[row] = 0
             self.law_kind[row] = -1
             self._active = None
 
+    def _uncount(self, row: int) -> None:
+        """Take assigned row ``row``'s driver out of the counts behind :meth:`delayed` and :meth:`all_compiled`."""
+        self._n_delayed -= int(self._delay[row] > 0)
+        self._n_uncompiled -= int(self.law_kind[row] < 0)
+
     def delayed(self) -> bool:
         """Does some row's driver have a reaction delay (then :meth:`act` keeps a ring of past
-        observations)? A row without a baseline driver has no delay (:meth:`remove`)."""
-        return bool(np.any(self._delay > 0))
+        observations)? A row without a baseline driver has no delay (:meth:`remove`).
+        Counted as rows are assigned and removed: ``np.any(self._delay > 0)``, without reading it."""
+        return self._n_delayed > 0
+
+    def all_compiled(self) -> bool:
+        """Is every assigned row's law one the compiled loop runs (a :data:`~acc_gym.drivers.baselines.MODELS`
+        class's, ``law_kind >= 0``)? Counted like :meth:`delayed`."""
+        return self._n_uncompiled == 0
 
     def _groups(self) -> list:
         if self._active is None:

@@ -408,3 +408,53 @@ def test_idle_rows_are_skipped_and_the_others_keep_their_numbers():
         o = obs_for(3, k)
         slot.act_rows(np.array([o.v, o.a, o.gap, o.v_lead, o.a_lead, np.full(3, np.inf), np.zeros(3), np.zeros(3)]))
     assert np.array_equal(slot._mpc.stats["steps"], [5, 0, 0])  # without the marks: [5, 5, 5]
+
+
+def test_the_path_follows_the_counted_delays_and_laws_through_assignments():
+    """The counts behind ``BaselineRows.delayed`` and ``all_compiled`` (kept as rows are
+    assigned, re-assigned and removed) equal the arrays they stand for, and the slot's cached
+    path equals the path worked out afresh, through random assignments of delayed and undelayed
+    models, a model outside the compiled loop (a subclass), profiles, absent vehicles and an
+    assignment that raises."""
+    from acc_gym.drivers.baselines import MODELS
+
+    class MyIDM(MODELS["idm"]):  # not a package model: its law is not in the compiled loop
+        pass
+
+    class Broken:  # a driver whose parameters fail as it is given
+        model = "idm"
+
+        def params_object(self):
+            raise ValueError("broken")
+
+    rng = np.random.default_rng(7)
+    slot = SlotDrivers(6, 0.2)
+    b = slot._baseline
+    choices = [("idm", {"v_desired": 20.0}), ("idm", {"tau": 0.4}), ("gipps", {}), ("fuzzy", {}), ("acc", {}),
+               ("mine", {}), ("none", None), ("profile", None), ("bad", None)]
+    paths = set()
+    for step in range(400):
+        row = int(rng.integers(6))
+        name, params = choices[int(rng.integers(len(choices)))]
+        if name == "none":
+            slot.assign(row, None)
+        elif name == "profile":
+            slot.assign(row, DriverSpec.from_profile(SpeedProfile.from_segments(10.0, [(1.0, 2.0)])))
+        elif name == "mine":
+            b.assign(row, MyIDM, IDMParams())  # straight into the rows, as SlotDrivers does for MODELS
+            slot.kind[row] = 3
+        elif name == "bad":
+            with pytest.raises(ValueError, match="broken"):
+                slot.assign(row, Broken())
+            assert slot.kind[row] == 0 and b._group[row] == -1  # left absent, not half-assigned
+        else:
+            slot.assign(row, DriverSpec(name, dict(params)))
+        assigned = b._group >= 0
+        assert b.delayed() == bool(np.any(b._delay[assigned] > 0)) == bool(np.any(b._delay > 0)), step
+        assert b.all_compiled() == bool(np.all(b.law_kind[assigned] >= 0)), step
+        path = slot._path()
+        compiled = slot.compiled_laws() is not None
+        slot._kinds_seen = None  # worked out afresh
+        assert (slot._path(), slot.compiled_laws() is not None) == (path, compiled), step
+        paths.add((path, compiled))
+    assert paths == {("baselines", True), ("baselines", False), ("mixed", False)}
