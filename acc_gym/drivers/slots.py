@@ -72,8 +72,8 @@ class SlotDrivers:
         self.fallbacks[row] = 0
         self.kind[row] = 0  # absent until the new driver is in place (an assignment that raises leaves it so)
         if spec is None:
-            pass
-        elif spec.model == "mpc":
+            return
+        if spec.model == "mpc":
             params = spec.params_object()
             if self._mpc is None:
                 self._mpc = MPCDriver(params.broadcast(self.n), settings=self.mpc_settings)
@@ -120,9 +120,10 @@ class SlotDrivers:
         (baseline models without a reaction delay, absent vehicles and profiles: each model's
         compiled law on the rows as they are), ``"mixed"``."""
         b = self._baseline
-        seen = (self.kind.tobytes(), b.delayed(), b.all_compiled())  # what the path depends on
-        if seen != getattr(self, "_kinds_seen", None):
-            self._kinds_seen = seen
+        delayed, compiled = b.delayed(), b.all_compiled()
+        seen = (self.kind.tobytes(), delayed, compiled)  # what the path depends on
+        if seen != getattr(self, "_path_seen", None):
+            self._path_seen = seen
             counts = np.bincount(self.kind, minlength=4)  # rows per kind (none, mpc, profile, baseline)
             is_mpc = self.kind == 1
             if self._mpc is not None:  # the kernel skips the rows without an MPC driver (their output is unused)
@@ -136,9 +137,9 @@ class SlotDrivers:
                 self._path_cached = "mpc+idle"
                 self._is_mpc = is_mpc
                 self._idle = np.flatnonzero(~is_mpc)
-            elif not counts[1] and not seen[1]:
+            elif not counts[1] and not delayed:
                 self._path_cached = "baselines"
-                self._compiled_laws = seen[2]  # every baseline row's law compiled (a MODELS class): one call
+                self._compiled_laws = compiled  # every baseline row's law compiled (a MODELS class): one call
             else:
                 self._path_cached = "mixed"
         return self._path_cached

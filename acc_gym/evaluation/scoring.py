@@ -388,8 +388,7 @@ def score_episode(trace: EgoTrace, config: ScoringConfig | None = None) -> Episo
     if shape[0] < 2:
         return score_episode_reference(trace, config)
     kp = _kernel_params(cfg)
-    tau1 = float(judged_tau1(trace.time_gap, trace.declared_time_gap, cfg))
-    grace = float(cfg.response_time) if cfg.response_time is not None else tau1
+    tau1, grace = _tau1_grace(trace.time_gap, trace.declared_time_gap, cfg)
     out = np.empty(_K.N_OUT)
     _K.score(t, cols[1], cols[2], cols[3], cols[4], _EMPTY if cols[5] is None else cols[5],
              _EMPTY if cols[6] is None else cols[6], _EMPTY if cols[7] is None else cols[7],
@@ -419,8 +418,7 @@ def score_record(rec: np.ndarray, n: int, set_speed: float | None = None, time_g
             and (set_speed is None or type(set_speed) in _SCALAR_TYPES)
             and _scalars_valid(set_speed, time_gap, declared_time_gap)):
         kp = _kernel_params(cfg)
-        tau1 = float(judged_tau1(time_gap, declared_time_gap, cfg))
-        grace = float(cfg.response_time) if cfg.response_time is not None else tau1
+        tau1, grace = _tau1_grace(time_gap, declared_time_gap, cfg)
         out = np.empty(_K.N_OUT)
         if _K.score_record(rec, n, kp[0], tau1, grace, np.nan if set_speed is None else float(set_speed), out):
             return _report(out.tolist(), cfg, kp, tau1)
@@ -433,6 +431,13 @@ def score_record(rec: np.ndarray, n: int, set_speed: float | None = None, time_g
     trace = EgoTrace(**dict(zip(_ARRAY_COLUMNS, arr[:, :n].copy())), set_speed=set_speed, time_gap=time_gap,
                      declared_time_gap=declared_time_gap)
     return score_episode(trace, config)
+
+
+def _tau1_grace(time_gap, declared_time_gap, cfg: ScoringConfig) -> tuple[float, float]:
+    """The compiled score's ``tau1`` (:func:`judged_tau1`) and proper-response grace time [s]:
+    the config's response time, else ``tau1``."""
+    tau1 = float(judged_tau1(time_gap, declared_time_gap, cfg))
+    return tau1, float(cfg.response_time) if cfg.response_time is not None else tau1
 
 
 def _report(o: list, cfg: ScoringConfig, kp: tuple, tau1: float) -> EpisodeReport:

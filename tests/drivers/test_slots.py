@@ -454,7 +454,7 @@ def test_the_path_follows_the_counted_delays_and_laws_through_assignments():
         assert b.all_compiled() == bool(np.all(b.law_kind[assigned] >= 0)), step
         path = slot._path()
         compiled = slot.compiled_laws() is not None
-        slot._kinds_seen = None  # worked out afresh
+        slot._path_seen = None  # worked out afresh
         assert (slot._path(), slot.compiled_laws() is not None) == (path, compiled), step
         paths.add((path, compiled))
     assert paths == {("baselines", True), ("baselines", False), ("mixed", False)}
