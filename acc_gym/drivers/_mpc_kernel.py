@@ -32,8 +32,10 @@ FAST, ACTIVE_SET, QP, HOLD, FALLBACK = 0, 1, 2, 3, 4
 # Statistics columns
 ST_STEPS, ST_FAST, ST_ACTIVE_SET, ST_QP, ST_HOLD, ST_FALLBACK, ST_SLACK, ST_EMERGENCY = range(8)
 N_STATS = 8
-MAX_ACTIVE = 48  # active constraints remembered per driver for the warm start
-MAX_AS_ITER = 16  # add/drop iterations of the warm active-set solver before handing over
+MAX_ACTIVE = 64  # working-set size of the kernel's QP solver (>= the default horizon's 60 inputs)
+DUAL_STEPS_PER_INPUT = 4  # the kernel's QP solver hands over after 4 N + 16 steps (traffic: <= 82, N = 60)
+DEPENDENT = 1e-12  # a row whose Schur pivot is below this (relative) depends on the working set
+N_SF = 11  # rows of the per-thread float scratch (see _one and _active_set_solve)
 
 # Driver-parameter matrix columns (MPCDriver builds it); the vehicle's columns follow.
 A_MAX, A_MIN, A_REQ_SAIL, A_SAIL, C_TG, X_MIN, V_DES, V_MAX, JERK, JERK_EM = range(10)
@@ -471,112 +473,264 @@ def _scan(u, lo, up, n, dt, zoh, skip, n_skip, beta):
     return worst, code
 
 
-@numba.njit(cache=True)
-def _as_add(code, a, u_p0, u_p1, u_unc, hc, lo, up, n, dt, zoh, beta, codes, wbuf, p0buf, p1buf, sbuf, rvec):
-    """Put constraint ``code`` at position ``a`` of the working set: its H^-1 g, Schur row, residual."""
+@numba.njit(cache=True, inline="always")
+def _ndot(code, x, p0, p1, n, dt, zoh, beta):
+    """``n_a . x`` for the active constraint ``code`` written as ``n_a . u >= b_a``: the row
+    ``g_c`` on a lower bound, ``-g_c`` on an upper bound."""
+    kind, k = _kind(code >> 1, n)
+    d = _row_dot(kind, k, x, p0, p1, dt, zoh, beta)
+    return -d if (code & 1) else d
+
+
+@numba.njit(cache=True, inline="always")
+def _rhs(code, lo, up):
+    """``b_a`` of ``n_a . u >= b_a``: the lower bound, or minus the upper bound."""
     c = code >> 1
-    kind, k = _kind(c, n)
-    codes[a] = code
-    _row_hinv(kind, k, hc, wbuf[a], dt, zoh, beta)
-    _prefix(wbuf[a], p0buf[a], p1buf[a])
-    for b in range(a + 1):
-        sbuf[a, b] = _row_dot(kind, k, wbuf[b], p0buf[b], p1buf[b], dt, zoh, beta)
-        sbuf[b, a] = sbuf[a, b]
-    bound = up[c] if (code & 1) else lo[c]
-    rvec[a] = _row_dot(kind, k, u_unc, u_p0, u_p1, dt, zoh, beta) - bound
-    return kind
+    return -up[c] if (code & 1) else lo[c]
 
 
 @numba.njit(cache=True)
-def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin, beta, out,
-                      wbuf, p0buf, p1buf, sbuf, lbuf, rvec, lam, u_p0, u_p1):
-    """Exact QP optimum from a warm working set, verified by the KKT conditions.
+def _load(code, hc, n, dt, zoh, beta, w, p0, p1):
+    """``w = H^-1 n_a`` of the constraint ``code`` (O(N)), and its running sums."""
+    kind, k = _kind(code >> 1, n)
+    _row_hinv(kind, k, hc, w, dt, zoh, beta)
+    if code & 1:
+        for r in range(n):
+            w[r] = -w[r]
+    _prefix(w, p0, p1)
 
-    Starting from ``codes[:m0]``, drop the constraint with the most negative multiplier
-    and add the most violated one until the KKT conditions of the QP with ``s = 0`` hold
-    (primal feasibility of every row, non-negative multipliers, and state multipliers
-    summing below the slack's exact-penalty weight so that ``s = 0`` is optimal too).
-    The working set's ``H^-1 g`` vectors and Schur complement are updated one
-    constraint at a time. Returns ``(ok, m)``: whether the KKT conditions hold, and the
-    size of the final working set (in ``codes``; a warm start for the backend if not ok).
+
+@numba.njit(cache=True)
+def _forward(L, m, d, spp, l):
+    """``l = L^-1 d`` over the first ``m`` rows of the Cholesky factor ``L`` of the working
+    set's ``S = N' H^-1 N``; returns the pivot ``spp - l . l`` a new row ``d`` (with diagonal
+    entry ``spp``) would add: ``n_p' z``, 0 when the row depends on the working set."""
+    piv = spp
+    for a in range(m):
+        acc = d[a]
+        for t in range(a):
+            acc -= L[a, t] * l[t]
+        l[a] = acc / L[a, a]
+        piv -= l[a] * l[a]
+    return piv
+
+
+@numba.njit(cache=True)
+def _backward(L, m, l, r):
+    """``r = L^-T l`` (with :func:`_forward`: ``r = S^-1 d``)."""
+    for a in range(m - 1, -1, -1):
+        acc = l[a]
+        for t in range(a + 1, m):
+            acc -= L[t, a] * r[t]
+        r[a] = acc / L[a, a]
+
+
+@numba.njit(cache=True)
+def _drop(j, m, codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf, n):
+    """Member ``j`` leaves the working set: the members after it move up one place (their
+    rows of ``H^-1 N``, rows and columns of ``S``, multipliers) and the Cholesky factor is
+    recomputed from row and column ``j`` on (the entries left of column ``j`` belong to the
+    same members as before: the same numbers). Returns the new size."""
+    for a in range(j, m - 1):
+        codes[a] = codes[a + 1]
+        lam[a] = lam[a + 1]
+        for r in range(n):
+            wbuf[a, r] = wbuf[a + 1, r]
+            p0buf[a, r] = p0buf[a + 1, r]
+            p1buf[a, r] = p1buf[a + 1, r]
+        for b in range(m):
+            sbuf[a, b] = sbuf[a + 1, b]
+    m -= 1
+    for a in range(m):
+        for b in range(j, m):
+            sbuf[a, b] = sbuf[a, b + 1]
+    for a in range(j, m):
+        for b in range(j):
+            lbuf[a, b] = lbuf[a + 1, b]
+    for a in range(j, m):
+        for b in range(j, a + 1):
+            acc = sbuf[a, b]
+            for t in range(b):
+                acc -= lbuf[a, t] * lbuf[b, t]
+            if a == b:
+                lbuf[a, a] = np.sqrt(max(acc, 1e-300))
+            else:
+                lbuf[a, b] = acc / lbuf[b, b]
+    return m
+
+
+@numba.njit(cache=True)
+def _join(m, code, d, spp, l, piv, lam_p, w, p0, p1, codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf, n):
+    """Constraint ``code`` joins the working set at position ``m`` (its ``H^-1 n``, Schur row
+    ``d`` and factor row ``l`` already computed); returns the new size."""
+    codes[m] = code
+    lam[m] = lam_p
+    for r in range(n):
+        wbuf[m, r] = w[r]
+        p0buf[m, r] = p0[r]
+        p1buf[m, r] = p1[r]
+    for b in range(m):
+        sbuf[m, b] = d[b]
+        sbuf[b, m] = d[b]
+        lbuf[m, b] = l[b]
+    sbuf[m, m] = spp
+    lbuf[m, m] = np.sqrt(piv)
+    return m + 1
+
+
+@numba.njit(cache=True)
+def _equality_optimum(u_unc, u_p0, u_p1, lo, up, codes, m, n, dt, zoh, beta, d, l, lbuf, lam):
+    """``lam = S^-1 (b_A - N_A' u_unc)``: the multipliers of the plan that meets the working
+    set's rows with equality (``u_p0``, ``u_p1``: the running sums of ``u_unc``)."""
+    for a in range(m):
+        d[a] = _rhs(codes[a], lo, up) - _ndot(codes[a], u_unc, u_p0, u_p1, n, dt, zoh, beta)
+    _forward(lbuf, m, d, 0.0, l)
+    _backward(lbuf, m, l, lam)
+
+
+@numba.njit(cache=True)
+def _plan(u_unc, lam, wbuf, m, out):
+    """``out = u_unc + H^-1 N_A lam``."""
+    for k in range(out.shape[0]):
+        acc = u_unc[k]
+        for a in range(m):
+            acc += lam[a] * wbuf[a, k]
+        out[k] = acc
+
+
+@numba.njit(cache=True)
+def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin, beta, out, sf, wbuf, p0buf, p1buf,
+                      sbuf, lbuf):
+    """Exact QP optimum with ``s = 0`` by a dual active-set method (Goldfarb and Idnani,
+    1983) warm-started from a working set, verified by the KKT conditions.
+
+    Every constraint is written ``n_a . u >= b_a`` (an upper bound negated). The working set
+    ``A`` keeps its ``H^-1 n_a``, ``S = N_A' H^-1 N_A`` and the Cholesky factor of ``S``
+    (a row appended in O(|A|^2) when a constraint joins; recomputed from the leaver's place on
+    when one leaves).
+
+    1. Warm start: the members of ``codes[:m0]`` whose rows are independent of those before
+       them; the multipliers of the plan that holds them with equality are ``S^-1 (b_A -
+       N_A' u_unc)``; while one is negative the most negative member leaves. The plan
+       ``u = u_unc + H^-1 N_A lam`` is then dual feasible (multipliers >= 0).
+    2. Dual steps: while a row is violated by more than ``feas``, take the most violated,
+       ``p``, and raise its multiplier: the plan moves along ``z = H^-1 n_p - H^-1 N_A r``
+       (``r = S^-1 N_A' H^-1 n_p``) and the members' multipliers by ``-r`` per unit, as
+       far as ``p``'s row is met (``p`` joins) or a member's multiplier reaches 0 first
+       (that member leaves, and the step goes on). A row dependent on the working set
+       (``n_p' z = 0``) moves only the multipliers. No step that leaves a multiplier < 0.
+
+    The answer is checked as the QP's optimum by the KKT conditions of the final working
+    set alone: its multipliers and plan computed afresh (not the sum of the steps), no
+    multiplier below ``-1e-9`` of the largest, no row violated by more than ``feas``, and
+    the state rows' multipliers summing below the slack's exact-penalty weight (then ``s =
+    0`` is optimal too); the plan returned is that fresh one. Returns ``(ok, m)``: whether
+    it is, and the size of the final working set (in ``codes``; a warm start for the backend
+    if not ok): not ok when the QP needs the slack, is infeasible without it, the working set
+    would outgrow ``wbuf``, or after ``4 N + 16`` steps (``DUAL_STEPS_PER_INPUT``; a
+    degenerate optimum -- more active rows than inputs, a braking ramp held by both its box
+    and its rate rows -- started far from its working set can take longer).
     """
+    u_p0 = sf[1, :n]
+    u_p1 = sf[2, :n]
+    lam = sf[4]
+    w = sf[5, :n]
+    w0 = sf[6, :n]
+    w1 = sf[7, :n]
+    d = sf[8]
+    l = sf[9]
+    r = sf[10]
+    cap = wbuf.shape[0]
     _prefix(u_unc, u_p0, u_p1)
+    # --- 1. warm start
     m = 0
     for a in range(m0):
-        if _kind(codes[a] >> 1, n)[0] == 5:
-            continue
-        _as_add(codes[a], m, u_p0, u_p1, u_unc, hc, lo, up, n, dt, zoh, beta, codes, wbuf, p0buf, p1buf, sbuf, rvec)
-        m += 1
-    for _ in range(MAX_AS_ITER):
-        # Cholesky of the Schur complement S = G_A H^-1 G_A', then lam = S^-1 r
+        code = codes[a]
+        if _kind(code >> 1, n)[0] == 5 or m >= cap or abs(_rhs(code, lo, up)) >= 0.5 * INF:
+            continue  # the slack's bound, no room, or a row without that bound this step
+        _load(code, hc, n, dt, zoh, beta, wbuf[m], p0buf[m], p1buf[m])
+        for b in range(m):
+            d[b] = _ndot(codes[b], wbuf[m], p0buf[m], p1buf[m], n, dt, zoh, beta)
+        spp = _ndot(code, wbuf[m], p0buf[m], p1buf[m], n, dt, zoh, beta)
+        piv = _forward(lbuf, m, d, spp, l)
+        if piv <= DEPENDENT * max(1.0, spp):
+            continue  # its row depends on the members before it
+        m = _join(m, code, d, spp, l, piv, 0.0, wbuf[m], p0buf[m], p1buf[m], codes, lam, wbuf, p0buf, p1buf, sbuf,
+                  lbuf, n)
+    while m > 0:
+        _equality_optimum(u_unc, u_p0, u_p1, lo, up, codes, m, n, dt, zoh, beta, d, l, lbuf, lam)
+        j = -1
+        worst = 0.0
         for a in range(m):
-            for b in range(a + 1):
-                acc = sbuf[a, b]
-                for t in range(b):
-                    acc -= lbuf[a, t] * lbuf[b, t]
-                if a == b:
-                    if acc <= 1e-12 * max(1.0, abs(sbuf[a, a])):
-                        return False, m  # dependent active rows: leave it to the backend
-                    lbuf[a, a] = np.sqrt(acc)
-                else:
-                    lbuf[a, b] = acc / lbuf[b, b]
-        for a in range(m):
-            acc = rvec[a]
-            for t in range(a):
-                acc -= lbuf[a, t] * lam[t]
-            lam[a] = acc / lbuf[a, a]
-        for a in range(m - 1, -1, -1):
-            acc = lam[a]
-            for t in range(a + 1, m):
-                acc -= lbuf[t, a] * lam[t]
-            lam[a] = acc / lbuf[a, a]
-        for r in range(n):
-            acc = u_unc[r]
-            for a in range(m):
-                acc -= wbuf[a, r] * lam[a]
-            out[r] = acc
-        # multipliers: mu = lam on an upper bound, -lam on a lower bound
-        worst_mu = 0.0
-        j_mu = -1
-        state_mu = 0.0
-        big_mu = 0.0
-        for a in range(m):
-            big_mu = max(big_mu, abs(lam[a]))
-        for a in range(m):
-            mu = lam[a] if (codes[a] & 1) else -lam[a]
-            kind = _kind(codes[a] >> 1, n)[0]
-            if kind != 0 and kind != 4:
-                state_mu += max(mu, 0.0)
-            if mu < worst_mu:
-                worst_mu, j_mu = mu, a
+            if lam[a] < worst:
+                worst, j = lam[a], a
+        if j < 0:
+            break
+        m = _drop(j, m, codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf, n)
+    _plan(u_unc, lam, wbuf, m, out)
+    # --- 2. dual steps
+    steps = 0
+    while True:
+        _prefix(out, u_p0, u_p1)
         viol, code = _scan(out, lo, up, n, dt, zoh, codes, m, beta)
-        mu_tol = 1e-9 * (1.0 + big_mu)
-        if viol <= feas and worst_mu >= -mu_tol and state_mu < slack_lin:
-            return True, m
-        if state_mu >= slack_lin:
-            return False, m  # the optimum uses the slack
-        if j_mu >= 0 and worst_mu < -mu_tol:
-            # drop j: move the last member into its place (rows and columns of S too)
-            last = m - 1
-            if j_mu != last:
-                codes[j_mu] = codes[last]
-                rvec[j_mu] = rvec[last]
-                for r in range(n):
-                    wbuf[j_mu, r] = wbuf[last, r]
-                    p0buf[j_mu, r] = p0buf[last, r]
-                    p1buf[j_mu, r] = p1buf[last, r]
-                for b in range(m):
-                    sbuf[j_mu, b] = sbuf[last, b]
-                for b in range(m):
-                    sbuf[b, j_mu] = sbuf[b, last]
-                sbuf[j_mu, j_mu] = sbuf[last, last]
-            m -= 1
-        if viol > feas:
-            if m >= MAX_ACTIVE:
+        if viol <= feas:
+            if steps > 0:  # (without dual steps, the plan and multipliers are the warm start's fresh ones)
+                _prefix(u_unc, u_p0, u_p1)
+                _equality_optimum(u_unc, u_p0, u_p1, lo, up, codes, m, n, dt, zoh, beta, d, l, lbuf, lam)
+                _plan(u_unc, lam, wbuf, m, out)
+                _prefix(out, u_p0, u_p1)
+                viol, code = _scan(out, lo, up, n, dt, zoh, codes, m, beta)
+            big = 0.0
+            low = 0.0
+            state = 0.0
+            for a in range(m):
+                big = max(big, abs(lam[a]))
+                low = min(low, lam[a])
+                kind = _kind(codes[a] >> 1, n)[0]
+                if kind != 0 and kind != 4:
+                    state += max(lam[a], 0.0)
+            return viol <= feas and low >= -1e-9 * (1.0 + big) and state < slack_lin, m
+        if m >= cap:
+            return False, m
+        _load(code, hc, n, dt, zoh, beta, w, w0, w1)
+        spp = _ndot(code, w, w0, w1, n, dt, zoh, beta)
+        bp = _rhs(code, lo, up)
+        lam_p = 0.0
+        while True:
+            steps += 1
+            if steps > DUAL_STEPS_PER_INPUT * n + 16:
                 return False, m
-            _as_add(code, m, u_p0, u_p1, u_unc, hc, lo, up, n, dt, zoh, beta, codes, wbuf, p0buf, p1buf, sbuf, rvec)
-            m += 1
-    return False, m
+            for b in range(m):
+                d[b] = _ndot(codes[b], w, w0, w1, n, dt, zoh, beta)
+            piv = _forward(lbuf, m, d, spp, l)
+            _backward(lbuf, m, l, r)
+            t1 = np.inf  # dual step: the first member whose multiplier would reach 0
+            j = -1
+            for a in range(m):
+                if r[a] > 1e-12:
+                    t = lam[a] / r[a]
+                    if t < t1:
+                        t1, j = t, a
+            dependent = piv <= DEPENDENT * max(1.0, spp)
+            t2 = np.inf if dependent else -(_ndot(code, out, u_p0, u_p1, n, dt, zoh, beta) - bp) / piv
+            t = min(t1, t2)
+            if t == np.inf:
+                return False, m  # infeasible without the slack
+            t = max(t, 0.0)
+            if not dependent:
+                for k in range(n):
+                    acc = w[k]
+                    for a in range(m):
+                        acc -= r[a] * wbuf[a, k]
+                    out[k] += t * acc
+                _prefix(out, u_p0, u_p1)
+            for a in range(m):
+                lam[a] = max(lam[a] - t * r[a], 0.0)
+            lam_p += t
+            if t2 <= t1:
+                m = _join(m, code, d, spp, l, piv, lam_p, w, w0, w1, codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf, n)
+                break
+            m = _drop(j, m, codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf, n)
 
 
 @numba.njit(cache=True)
@@ -624,10 +778,6 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
     """Driver ``i``'s step; returns its path (QP: the backend must solve it)."""
     n = plan.shape[1]
     u_unc = sf[0, :n]
-    u_p0 = sf[1, :n]
-    u_p1 = sf[2, :n]
-    rvec = sf[3, :MAX_ACTIVE]
-    lam = sf[4, :MAX_ACTIVE]
     dt = S[S_DT]
     zoh = S[S_ZOH] > 0.5
     use_acc = S[S_LEADACC] > 0.5
@@ -835,8 +985,7 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         m0 = _shift_active(codes, m0, n)
         hc = hinv_c[i] if target == CRUISE else hinv_f[i]
         ok, ma = _active_set_solve(u_unc, hc, lower[i], upper[i], codes, m0, n, dt, zoh, S[S_FEAS],
-                                   S[S_SLACK_LIN], beta, plan[i], sw[0], sw[1], sw[2], ss[0], ss[1], rvec, lam,
-                                   u_p0, u_p1)
+                                   S[S_SLACK_LIN], beta, plan[i], sf, sw[0], sw[1], sw[2], ss[0], ss[1])
         # remember the working set either way: the solution's, or a warm start for the backend
         for a in range(ma):
             act_codes[i, a] = codes[a]
@@ -881,7 +1030,7 @@ def _make_prepare(parallel):
             return -NEED_FOLLOW - n_need
         n = PA.shape[2]
         width = max(n, MAX_ACTIVE + 1)
-        o1 = 5 * width
+        o1 = N_SF * width
         o2 = o1 + 3 * MAX_ACTIVE * n
         o3 = o2 + 2 * MAX_ACTIVE * MAX_ACTIVE
         hinv_f = H[:, 0]
@@ -902,7 +1051,7 @@ def _make_prepare(parallel):
             t = numba.get_thread_id() if parallel else 0  # scratch: one set per thread
             _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, GL, hinv_f, hinv_c,
                  mode, lower, upper, plan, aseq, W, act_codes, act_count, stats,
-                 SF[t, :o1].reshape((5, width)), SF[t, o1:o2].reshape((3, MAX_ACTIVE, n)),
+                 SF[t, :o1].reshape((N_SF, width)), SF[t, o1:o2].reshape((3, MAX_ACTIVE, n)),
                  SF[t, o2:o3].reshape((2, MAX_ACTIVE, MAX_ACTIVE)), SC[t])
         n_hard = 0
         for i in range(nd):
@@ -945,7 +1094,7 @@ def scratch(n_steps: int, parallel: bool):
     """Per-thread work arrays for :func:`prepare`: floats ``SF`` and ints ``SC``."""
     rows = numba.config.NUMBA_NUM_THREADS if parallel else 1
     width = max(n_steps, MAX_ACTIVE + 1)
-    size = 5 * width + 3 * MAX_ACTIVE * n_steps + 2 * MAX_ACTIVE * MAX_ACTIVE
+    size = N_SF * width + 3 * MAX_ACTIVE * n_steps + 2 * MAX_ACTIVE * MAX_ACTIVE
     return np.zeros((rows, size)), np.zeros((rows, MAX_ACTIVE + 1), dtype=np.int64)
 
 

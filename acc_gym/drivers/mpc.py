@@ -152,7 +152,7 @@ class SolvePath(IntEnum):
     """How the step's input was obtained (``info["path"]``)."""
 
     UNCONSTRAINED = K.FAST  # the unconstrained law, checked against every constraint: exact
-    ACTIVE_SET = K.ACTIVE_SET  # last step's active set, corrected and KKT-verified: exact
+    ACTIVE_SET = K.ACTIVE_SET  # the kernel's dual active-set solver from last step's active set, KKT-verified: exact
     QP = K.QP  # the backend solved the QP
     HOLD = K.HOLD  # standing or stopping inside the step: no QP needed
     FALLBACK = K.FALLBACK  # the backend failed; safe fallback used
@@ -357,7 +357,7 @@ class MPCSettings:
     brake_slack_tol: float = 0.05
     slack_linear: float = 1e9  # exact-penalty weight of the slack (above any multiplier of a far target)
     slack_quadratic: float = 1e4  # quadratic weight of the slack
-    warm_active_set: bool = True  # try last step's active set (KKT-verified) before the backend
+    warm_active_set: bool = True  # the kernel's active-set solver (KKT-verified) before the backend
     # Threads for batches of >= 128 drivers: True, False, or None (auto: on for those batches).
     # Off by default: they pay only on an otherwise idle machine; with other busy processes
     # (RL training, vector envs in subprocesses, campaign workers, tests) the thread pool
@@ -417,9 +417,10 @@ class MPCDriver:
     and of steps in EMERGENCY. The vehicle parameters give the acceleration envelope the
     plan respects (``a_U(v)``, ``a_L(v)`` at the current speed).
 
-    Solving: the unconstrained law when it is feasible; else last step's active set,
-    shifted along the horizon and corrected by a few add/drop steps, accepted only when
-    the KKT conditions hold (so it is exact); else the backend (DAQP by default).
+    Solving: the unconstrained law when it is feasible; else the kernel's dual active-set
+    solver, warm-started from last step's active set shifted along the horizon, accepted
+    only when the KKT conditions hold (so it is exact); else (the QP needs the slack) the
+    backend (DAQP by default).
     """
 
     def __init__(self, params: MPCDriverParams | None = None, n: int | None = None,

@@ -40,11 +40,13 @@ Solving
 On most steps no constraint is active and the optimum is the unconstrained linear law
 ``u = Z @ theta`` (``s = 0``), exact; the driver kernel checks it against every
 constraint with a few recurrences, batched over drivers. Where a constraint binds, the
-kernel's warm active-set solver starts from the working set of the driver's step before
-and accepts its answer only where the KKT conditions hold. The remaining steps
-go to an exact QP backend kept warm between steps: DAQP (a dual active-set solver,
-default), ProxQP from proxsuite, or any qpsolvers backend (no workspace; for
-cross-checks). Backends never raise: a failure is returned as ``ok=False`` and the
+kernel's dual active-set solver (Goldfarb and Idnani's method, on the rows' ``H^-1 g`` in
+O(N) each from the running sums of ``H^-1``) starts from the working set of the driver's
+step before and accepts its answer only where the KKT conditions of its final working set
+hold; it hands over the QPs that need the slack (or that it does not settle within ``4 N +
+16`` steps). Those go to an exact QP backend kept warm between steps: DAQP (a dual
+active-set solver, default), ProxQP from proxsuite, or any qpsolvers backend (no
+workspace; for cross-checks). Backends never raise: a failure is returned as ``ok=False`` and the
 driver falls back (counted).
 """
 

@@ -107,6 +107,7 @@ def _random_instances(count, seed):
         data = d.qp_data(0)
         if data["path"] in (SolvePath.UNCONSTRAINED, SolvePath.ACTIVE_SET, SolvePath.QP):
             qp = (d._qp_cruise if d.info["target"][0] == 2 else d._qp_follow)[0]
+            data["beta"] = d._beta[0].copy()
             out.append((qp, data, np.append(d.plan[0], d.info["slack"][0])))
     return out
 
@@ -224,3 +225,104 @@ def test_warm_active_set_steps_in_traffic_are_exact():
                 checked += 1
     envs.close()
     assert checked >= 300
+
+
+def _kernel_solve(qp, data, codes):
+    """The driver kernel's QP solver (``s = 0``) on one instance from the working set ``codes``:
+    ``(ok, plan, final working set)``."""
+    from acc_gym.drivers import _mpc_kernel as K
+
+    n = qp.hinv.shape[0]
+    sf = np.zeros((K.N_SF, max(n, K.MAX_ACTIVE + 1)))
+    sw = np.zeros((3, K.MAX_ACTIVE, n))
+    ss = np.zeros((2, K.MAX_ACTIVE, K.MAX_ACTIVE))
+    codes = codes[:K.MAX_ACTIVE]  # as many as the driver keeps
+    work = np.zeros(K.MAX_ACTIVE + 1, dtype=np.int64)
+    work[:len(codes)] = codes
+    out = np.zeros(n)
+    u_unc = -qp.hinv @ data["q"][:n]
+    ok, m = K._active_set_solve(u_unc, qp.hinv_sums, data["lower"], data["upper"], work, len(codes), n, 0.2, True,
+                                1e-7, 1e9, data["beta"], out, sf, sw[0], sw[1], sw[2], ss[0], ss[1])
+    return ok, out, work[:m].copy()
+
+
+def test_the_kernel_solver_reaches_the_optimum_from_any_working_set():
+    """The kernel's dual active-set solver started from nothing, from the optimum's own active
+    rows, and from random working sets (rows of either bound, the slack's bound, rows without
+    a bound this step, duplicates, rows that depend on each other): wherever the QP's optimum
+    (quadprog) needs no slack, every answer it gives is that optimum and its final working set
+    holds with equality. It may hand a QP over (not ok) only after its step cap, which only a
+    degenerate optimum (more active rows than inputs: a braking ramp held by both its box
+    and its rate rows) started far from its working set reaches here."""
+    rng = np.random.default_rng(3)
+    checked = answered = constrained = 0
+    for qp, data, _ in _random_instances(120, seed=11):
+        ref = make_backend("qpsolvers:quadprog", qp, data["G"]).solve(data["q"], data["lower"], data["upper"])
+        if not ref.ok or ref.z[-1] > 1e-9:
+            continue  # quadprog's own trouble, or the optimum needs the slack: the backend's QP
+        n = qp.hinv.shape[0]
+        n_bounds = data["lower"].shape[0]
+        rows = np.concatenate([ref.z, data["G"] @ ref.z])
+        near_hi = np.flatnonzero(np.abs(rows - data["upper"]) < 1e-7)
+        near_lo = np.flatnonzero(np.abs(rows - data["lower"]) < 1e-7)
+        own = np.concatenate([2 * near_hi + 1, 2 * near_lo])
+        own = own[(own >> 1) != n]  # not the slack's bound
+        constrained += own.size > 0
+        starts = [np.zeros(0, dtype=np.int64), own]
+        for _ in range(4):
+            size = int(rng.integers(1, 50))
+            codes = 2 * rng.integers(0, n_bounds, size) + rng.integers(0, 2, size)
+            starts.append(np.concatenate([codes, codes[: size // 3]]))  # with duplicates
+        for k, codes in enumerate(starts):
+            ok, u, work = _kernel_solve(qp, data, codes)
+            checked += 1
+            if not ok:
+                assert own.size > n and k != 1  # degenerate, and not from its own working set
+                continue
+            answered += 1
+            assert np.max(np.abs(u - ref.z[:n])) < 1e-6
+            z = np.append(u, 0.0)
+            assert constraint_violation(z, data["lower"], data["upper"], data["G"]) < 1e-6
+            rows_u = np.concatenate([z, data["G"] @ z])
+            c, upper = work >> 1, (work & 1) == 1
+            bound = np.where(upper, data["upper"][c], data["lower"][c])
+            assert np.allclose(rows_u[c], bound, atol=1e-6)
+    assert checked >= 300 and constrained >= 15 and answered >= 0.97 * checked
+
+
+def test_the_kernel_hands_over_only_qps_that_need_the_slack(monkeypatch):
+    """In a stretch of traffic (a CarFollowing-v1 vector env under small random actions)
+    every step whose QP the kernel hands to the backend needs the slack there (the QP is
+    infeasible without it, or its multipliers would exceed the slack's exact-penalty
+    weight): the kernel settles every other constrained step itself. (Before acc-gym
+    0.23.5 its primal solver gave up on a full 48-row working set, on a violated row
+    dependent on the working set and after 16 iterations: some 600 hand-overs of QPs
+    without slack in this stretch at 256 scenes.)"""
+    import gymnasium as gym
+
+    import acc_gym  # noqa: F401
+    from acc_gym.drivers import mpc as mpc_module
+
+    first = []
+    seen = set()
+    original = mpc_module.MPCDriver._solve_backend
+
+    def solve_backend(self, i, key_cruise, emergency, q):
+        backend, res = original(self, i, key_cruise, emergency, q)
+        key = (id(self), self._step, i)
+        if key not in seen:  # the step's first solve: the QP the kernel gave up on (later ones escalate)
+            seen.add(key)
+            first.append(res.z[-1] if res.ok else np.nan)
+        return backend, res
+
+    monkeypatch.setattr(mpc_module.MPCDriver, "_solve_backend", solve_backend)
+    envs = gym.make_vec("acc_gym/CarFollowing-v1", num_envs=64, vectorization_mode="vector_entry_point")
+    rng = np.random.default_rng(1)
+    envs.reset(seed=1)
+    settled = 0
+    for _ in range(150):
+        envs.step(rng.uniform(-0.3, 0.3, (64, 1)).astype(np.float32))
+        settled += int(np.sum(envs.unwrapped.core.drivers._mpc.info["path"] == SolvePath.ACTIVE_SET))
+    envs.close()
+    assert settled >= 500  # constrained steps the kernel solved
+    assert all(s > 1e-9 for s in first), sorted(first)[:5]
