@@ -35,7 +35,7 @@ N_STATS = 8
 MAX_ACTIVE = 64  # working-set size of the kernel's QP solver (>= the default horizon's 60 inputs)
 DUAL_STEPS_PER_INPUT = 4  # the kernel's QP solver hands over after 4 N + 16 steps (traffic: <= 82, N = 60)
 DEPENDENT = 1e-12  # a row whose Schur pivot is below this (relative) depends on the working set
-N_SF = 11  # rows of the per-thread float scratch (see _one and _active_set_solve)
+N_SF = 10  # rows of the per-thread float scratch: u_unc (row 0, _one), then _active_set_solve's
 
 # Driver-parameter matrix columns (MPCDriver builds it); the vehicle's columns follow.
 A_MAX, A_MIN, A_REQ_SAIL, A_SAIL, C_TG, X_MIN, V_DES, V_MAX, JERK, JERK_EM = range(10)
@@ -631,15 +631,15 @@ def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin,
     degenerate optimum -- more active rows than inputs, a braking ramp held by both its box
     and its rate rows -- started far from its working set can take longer).
     """
-    u_p0 = sf[1, :n]
+    u_p0 = sf[1, :n]  # running sums of u_unc, then of the plan
     u_p1 = sf[2, :n]
-    lam = sf[4]
-    w = sf[5, :n]
-    w0 = sf[6, :n]
-    w1 = sf[7, :n]
-    d = sf[8]
-    l = sf[9]
-    r = sf[10]
+    lam = sf[3]  # the members' multipliers
+    w = sf[4, :n]  # the violated row's H^-1 n and its running sums
+    w0 = sf[5, :n]
+    w1 = sf[6, :n]
+    d = sf[7]  # a Schur column N_A' H^-1 n (or a right-hand side), its L^-1 image, and S^-1 of it
+    l = sf[8]
+    r = sf[9]
     cap = wbuf.shape[0]
     _prefix(u_unc, u_p0, u_p1)
     # --- 1. warm start
