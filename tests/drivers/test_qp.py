@@ -296,8 +296,8 @@ def test_the_kernel_hands_over_only_qps_that_need_the_slack(monkeypatch):
     infeasible without it, or its multipliers would exceed the slack's exact-penalty
     weight): the kernel settles every other constrained step itself. (Before acc-gym
     0.23.5 its primal solver gave up on a full 48-row working set, on a violated row
-    dependent on the working set and after 16 iterations: some 600 hand-overs of QPs
-    without slack in this stretch at 256 scenes.)"""
+    dependent on the working set and after 16 iterations, and this test failed: some 600
+    hand-overs of QPs without slack in 400 steps of 256 scenes.)"""
     import gymnasium as gym
 
     import acc_gym  # noqa: F401
