@@ -670,15 +670,14 @@ def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin,
     _plan(u_unc, lam, wbuf, m, out)
     # --- 2. dual steps
     steps = 0
+    _prefix(out, u_p0, u_p1)  # the plan's running sums (the violated row's distance), kept with every move
     while True:
-        _prefix(out, u_p0, u_p1)
         viol, code = _scan(out, lo, up, n, dt, zoh, codes, m, beta)
         if viol <= feas:
             if steps > 0:  # (without dual steps, the plan and multipliers are the warm start's fresh ones)
                 _prefix(u_unc, u_p0, u_p1)
                 _equality_optimum(u_unc, u_p0, u_p1, lo, up, codes, m, n, dt, zoh, beta, d, l, lbuf, lam)
                 _plan(u_unc, lam, wbuf, m, out)
-                _prefix(out, u_p0, u_p1)
                 viol, code = _scan(out, lo, up, n, dt, zoh, codes, m, beta)
             big = 0.0
             low = 0.0
