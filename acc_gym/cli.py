@@ -238,7 +238,7 @@ def _main(argv=None) -> int:
     p_dd.add_argument("--driver", default="#57", help="paper 001 Table 4 preset: #23, #57, #61 or #13")
     p_dd.add_argument("--speed", type=float, default=25.0, help="the lead's cruise speed [m/s]")
     p_dd.add_argument("--json", action="store_true", help="print one JSON object")
-    sub.add_parser("controllers", help="list the controllers registered by name, and where each comes from")
+    sub.add_parser("controllers", help="list the controllers registered by name: what each is, and where it comes from")
     _add_campaign_parser(sub)
     _add_leaderboard_parser(sub)
     from acc_gym.risk import cli as risk_cli
@@ -249,15 +249,18 @@ def _main(argv=None) -> int:
 
     string_stability_cli.add_parser(sub)
     conformance_cli.add_parser(sub)
+    from acc_gym.simulation import ring_cli
+
+    ring_cli.add_parser(sub)
     plugins = cli_plugins()  # e.g. acc-gym train, from the acc_gym.cli entry points
     for plugin in plugins.values():
         plugin.add_parser(sub)
     args = parser.parse_args(argv)
+    parser = sub.choices[args.command]  # errors from here on print the subcommand's usage, as parsing errors do
     if args.command in plugins:
         return plugins[args.command].run(args, parser)
     if args.command == "controllers":
-        for name, origin in registered_controllers().items():
-            print(f"{name:12s} {origin}")
+        _print_controllers()
         return 0
     if args.command == "campaign":
         return _campaign(args, parser)
@@ -269,6 +272,8 @@ def _main(argv=None) -> int:
         return string_stability_cli.run(args, parser)
     if args.command == "conformance":
         return conformance_cli.run(args, parser)
+    if args.command == "ring":
+        return ring_cli.run(args, parser)
     if args.command in ("scenarios", "score"):
         try:
             print(_scenarios(args) if args.command == "scenarios" else _score(args))
@@ -292,8 +297,6 @@ def _main(argv=None) -> int:
         if args.json:
             print(json.dumps(out))
         else:
-            from acc_gym.evaluation.scoring import EpisodeReport  # noqa: F401
-
             print(f"{out['scenario']} with controller {out['controller']!r}: score {out['score']:.1f} / 100 "
                   f"({'qualified' if out['qualified'] else 'NOT qualified'}), simulated in {out['wall_time_s']:.2f} s")
             _print_report(out["report"])
@@ -327,6 +330,22 @@ def _main(argv=None) -> int:
     return 0
 
 
+def _print_controllers() -> None:
+    """One line per registered name: the name, what it is
+    (:func:`acc_gym.controllers.describe_controller`) and, in brackets, where it comes from; a
+    plugin that does not load says why, and the list goes on."""
+    from acc_gym.controllers import describe_controller
+
+    found = registered_controllers()
+    width = max((len(n) for n in found), default=0)
+    for name, origin in found.items():
+        try:
+            what = describe_controller(name) or "(no description: its factory has no docstring)"
+        except ValueError as exc:
+            what = f"(does not load: {exc})"
+        print(f"{name:<{width}}  {what}  [{origin}]")
+
+
 def _add_campaign_parser(sub) -> None:
     p = sub.add_parser("campaign", help="run or resume a Monte Carlo campaign of a suite's traffic "
                                         "(needs pyarrow; Dask for --scheduler)")
@@ -356,24 +375,24 @@ def _campaign(args, parser) -> int:
         parser.error(f"--workers {args.workers} sets the size of --scheduler local only; a running cluster "
                      f"({args.scheduler}) has its own workers")
     workers = args.workers if args.workers is not None else (2 if args.scheduler else (os.cpu_count() or 1))
-    done = []
+    from acc_gym._progress import progress_bar
+
+    bar = progress_bar(f"campaign {args.suite}", unit="chunks", enabled=not args.json)
 
     def progress(number, n_done, total):
-        done.append(number)
-        if not args.json and sys.stderr.isatty():
-            print(f"\rchunks {n_done}/{total}", end="", file=sys.stderr, flush=True)
+        bar.update(completed=n_done, total=total)
 
     try:
-        summary = run_campaign(args.suite, args.hours, args.controller, args.out, split=args.split,
-                               root_seed=args.root_seed, workers=workers, scheduler=args.scheduler,
-                               chunk_size=args.chunk_size, max_chunks=args.max_chunks, confidence=args.confidence,
-                               on_chunk=progress)
+        with bar:  # from the start: the plan, the workers' start-up and the chunks that are already there
+            summary = run_campaign(args.suite, args.hours, args.controller, args.out, split=args.split,
+                                   root_seed=args.root_seed, workers=workers, scheduler=args.scheduler,
+                                   chunk_size=args.chunk_size, max_chunks=args.max_chunks,
+                                   confidence=args.confidence, on_chunk=progress,
+                                   on_start=lambda n_done, total: bar.update(completed=n_done, total=total))
     except MissingDependencyError as exc:
         parser.error(str(exc))
     except (CampaignError, ValueError, TypeError, OSError) as exc:
         parser.error(str(exc))
-    if done and not args.json and sys.stderr.isatty():
-        print(file=sys.stderr)
     if args.json:
         print(json.dumps(summary))
     else:
@@ -383,19 +402,9 @@ def _campaign(args, parser) -> int:
 
 
 def _print_report(r: dict) -> None:
-    for name, item in r["items"].items():
-        state = "qualified" if item["qualified"] else "unqualified"
-        print(f"  {name:<14} {item['requirement']:<26} {state}{'' if item['applicable'] else ' (not applicable)'}")
-    u = "n/a" if r["u"] is None else f"{r['u']:.3f}"
-    print(f"  efficiency     R1 = {r['r1']:.2f} (u = {u});  comfort R2 = {r['r2']:.2f} "
-          f"(j_x = {r['j_x']:.3f}, j_y = {r['j_y']:.3f})")
-    m = r["metrics"]
-    safe = "n/a" if m["share_safe_spacing"] is None else f"{m['share_safe_spacing']:.1%}"
-    def num(x, unit):
-        return "none" if x is None or isinstance(x, str) else f"{x:.2f} {unit}"
+    from acc_gym.evaluation.scoring import report_text
 
-    print(f"  collision {m['collision']}, comfortable {m['share_comfortable']:.1%}, safe spacing {safe}, "
-          f"min TTC {num(m['min_ttc'], 's')}, max jerk {m['max_jerk']:.2f} m/s^3, min gap {num(m['min_gap'], 'm')}")
+    print(report_text(r, header=False))
 
 
 def _print_summary(controller: str, env_id: str, s: dict) -> None:
@@ -425,7 +434,13 @@ def _add_leaderboard_parser(sub) -> None:
     from acc_gym.leaderboard.results import RANKING_RULE
 
     p = sub.add_parser("leaderboard", help="score controllers on versioned suites and rank them",
-                       description=f"Score controllers on versioned suites and rank them. Ranking: {RANKING_RULE}.")
+                       description=f"Score controllers on versioned suites and rank them. Ranking: {RANKING_RULE}. "
+                                   f"Paths (run directories, model files) and module:attribute modules are looked "
+                                   f"up from the directory the command runs in.",
+                       epilog="exit status: 0 every controller finished; 3 at least one controller failed (the "
+                              "ranking is printed and the results are written all the same, so a CI job can gate "
+                              "on it); 1 the results could not be written or the sandbox cannot run here; 2 bad "
+                              "arguments.")
     p.add_argument("--suite", action="append", default=None,
                    help="a suite (carfollowing-v1, malicious-v3, ncap-v1, ncap-v2, singlelane-v3); repeat or "
                         "comma-separate for several (default: all of them)")
@@ -433,21 +448,40 @@ def _add_leaderboard_parser(sub) -> None:
                    help="dev, test or private (default test): develop on dev, publish on test, rank officially "
                         "on private")
     p.add_argument("--secret", default=None, metavar="FILE",
-                   help="the host's secret for --split private (default: the environment variable "
-                        "ACC_GYM_LEADERBOARD_SECRET); only its commitment is recorded")
+                   help="the host's secret for --split private: a file only its owner can read (mode 0600; "
+                        "never the environment); only its commitment is recorded")
     p.add_argument("--controllers", nargs="+", default=None,
                    help="built-in names, module:attribute or saved model paths (default: every built-in "
                         "and the shipped policies ppo-acc and ppo)")
     p.add_argument("--out", default="leaderboard", help="output directory (default leaderboard/)")
     p.add_argument("--workers", type=int, default=DEFAULT_WORKERS, help="controllers run in parallel")
     p.add_argument("--step-budget", type=float, default=DEFAULT_STEP_BUDGET,
-                   help="seconds a predict() call may take (the first call is exempt)")
+                   help="seconds per observation row of a round trip: the simulation sends up to 16 episodes' "
+                        "rows at a time and a round trip of n rows may take n times this, so one slow call "
+                        "among fast ones can pass (default %(default)g; the first round trip is exempt)")
     p.add_argument("--budget", type=float, default=DEFAULT_BUDGET, help="seconds per controller in all")
     p.add_argument("--episodes", type=int, default=None, help="run at most N episodes of each suite")
     p.add_argument("--no-report", action="store_true", help="skip report.html (and its episode re-runs)")
     p.add_argument("--sandbox", choices=("process", "bwrap"), default="process",
                    help="how controllers are contained: process (own process, session, limits and, as root, "
                         "user id) or bwrap (bubblewrap: read-only root, no network, own PID namespace)")
+    from acc_gym.leaderboard.sandbox import Limits
+
+    p.add_argument("--allow-root", action="store_true",
+                   help="run strangers' controllers (module:attribute, model files, other packages' entry points) "
+                        "as root even where they cannot get a user id of their own; the reports then say so "
+                        "(refused otherwise; the built-ins always run)")
+    p.add_argument("--log-limit", type=float, default=Limits.log_bytes / 2**20, metavar="MiB",
+                   help="of a controller's output kept in its log; the rest is dropped with a note (default "
+                        "%(default)g)")
+    p.add_argument("--memory", type=float, default=Limits.memory_bytes / 2**30, metavar="GiB",
+                   help="per controller: its whole process tree's where a cgroup can be made (root), else each "
+                        "process's address space (default %(default)g)")
+    p.add_argument("--processes", type=int, default=Limits.processes,
+                   help="processes and threads per controller (a pids cgroup as root, else RLIMIT_NPROC with its "
+                        "own user id; default %(default)s)")
+    p.add_argument("--tmp-size", type=float, default=Limits.tmp_bytes / 2**20, metavar="MiB",
+                   help="of a controller's private /tmp and /dev/shm (in RAM; default %(default)g)")
     p.add_argument("--risk", action="store_true",
                    help="add each controller's collision probability per encounter, estimated by importance "
                         "sampling in the same sandbox (acc-gym risk; slower)")
@@ -462,18 +496,25 @@ def _add_leaderboard_parser(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the ranking as one JSON object")
 
 
+def _limits(args):
+    from acc_gym.leaderboard.sandbox import Limits
+
+    return Limits(log_bytes=int(args.log_limit * 2**20), memory_bytes=int(args.memory * 2**30),
+                  processes=args.processes, tmp_bytes=int(args.tmp_size * 2**20))
+
+
 def _leaderboard(args, parser) -> int:
+    import contextlib
+
     from acc_gym.leaderboard import run_leaderboard
+    from acc_gym.leaderboard.progress import LeaderboardProgress
     from acc_gym.leaderboard.results import text_table
-    from acc_gym.leaderboard.run import OutputError
+    from acc_gym.leaderboard.run import OutputError, default_controllers
+    from acc_gym.suites import list_suites
 
     suites = None if args.suite is None else [s.strip() for arg in args.suite for s in arg.split(",") if s.strip()]
-
-    def progress(outcome):
-        if not args.json:
-            state = "ok" if outcome.status == "ok" else f"FAILED: {outcome.reason}"
-            print(f"  {outcome.reference}: {len(outcome.episodes)} episodes in {outcome.wall_time_s:.1f} s, "
-                  f"{state}", file=sys.stderr, flush=True)
+    bar = None if args.json else LeaderboardProgress(args.controllers or default_controllers(),
+                                                     len(suites or list_suites()), max(1, args.workers))
 
     def show(results):  # the ranking, printed before anything is written
         if args.json:
@@ -487,6 +528,7 @@ def _leaderboard(args, parser) -> int:
                                            **({} if args.no_iso15622 else {"iso15622": by_name[n].get("iso15622")})}
                                           for n in results["ranking"]], "out": str(args.out)}), flush=True)
         else:
+            bar.__exit__(None, None, None)  # the bar's last line stays, the table comes below it
             m = results["manifest"]
             print(f"leaderboard, split {m['split']}: " + ", ".join(
                 f"{s['name']} ({s['episodes_run']} episodes, sha256 {s['hash'][:12]})" for s in m["suites"]))
@@ -498,12 +540,15 @@ def _leaderboard(args, parser) -> int:
             from acc_gym.suites.private import read_secret
 
             secret = read_secret(args.secret)
-        results = run_leaderboard(suites, args.split, args.controllers, out=args.out, workers=args.workers,
-                                  step_budget=args.step_budget, budget=args.budget, episodes=args.episodes,
-                                  report=not args.no_report, progress=progress, sandbox=args.sandbox, show=show,
-                                  secret=secret, risk={"family": args.risk_family, "budget": args.risk_budget}
-                                  if args.risk else None, string_stability=not args.no_string_stability,
-                                  iso15622=not args.no_iso15622)
+        with bar if bar is not None else contextlib.nullcontext():
+            results = run_leaderboard(suites, args.split, args.controllers, out=args.out, workers=args.workers,
+                                      step_budget=args.step_budget, budget=args.budget, episodes=args.episodes,
+                                      report=not args.no_report, progress=bar and bar.finished, sandbox=args.sandbox,
+                                      show=show, phase=bar and bar.phase,
+                                      secret=secret, risk={"family": args.risk_family, "budget": args.risk_budget}
+                                      if args.risk else None, string_stability=not args.no_string_stability,
+                                      iso15622=not args.no_iso15622, allow_root=args.allow_root,
+                                      limits=_limits(args))
     except (OutputError, RuntimeError) as exc:  # a failed write, or a sandbox this machine cannot give
         print(f"acc-gym leaderboard: error: {exc}", file=sys.stderr)
         return 1
@@ -512,6 +557,11 @@ def _leaderboard(args, parser) -> int:
     if not args.json:
         print(f"files: {args.out}/ ({', '.join(sorted(results['files']))}, logs/) "
               f"({results['manifest']['timings']['total_wall_s']:.0f} s)")
+    failed = [c["name"] for c in results["controllers"] if c["status"] != "ok"]
+    if failed:  # the exit status of the epilog: a CI job fails on it
+        print(f"acc-gym leaderboard: {len(failed)} controller(s) failed: {', '.join(failed)} (exit status 3)",
+              file=sys.stderr)
+        return 3
     return 0
 
 

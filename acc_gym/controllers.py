@@ -34,10 +34,15 @@ LOADER_GROUP = "acc_gym.controller_loaders"
 CLI_GROUP = "acc_gym.cli"
 
 _REGISTERED: dict[str, tuple[object, str]] = {}
+_DESCRIPTIONS: dict[str, str] = {}  # given to register_controller
+DESCRIPTION_WIDTH = 100  # [characters] a description longer than this is cut, with "..."
 
 
-def register_controller(name: str, factory, *, origin: str | None = None, replace: bool = False) -> None:
-    """Make ``name`` resolve to ``factory()`` (a class or a callable returning a controller)."""
+def register_controller(name: str, factory, *, origin: str | None = None, replace: bool = False,
+                        description: str | None = None) -> None:
+    """Make ``name`` resolve to ``factory()`` (a class or a callable returning a controller);
+    ``description``: the line ``acc-gym controllers`` shows for it (default: the first
+    sentence of the factory's docstring, :func:`describe_controller`)."""
     if not isinstance(name, str) or not name or ":" in name or name != name.strip():
         raise ValueError(f"a controller name must be a non-empty string without ':' or surrounding spaces, got "
                          f"{name!r}")
@@ -45,8 +50,14 @@ def register_controller(name: str, factory, *, origin: str | None = None, replac
         raise TypeError(f"controller {name!r}: the factory must be callable, got {type(factory).__name__}")
     if name in _REGISTERED and not replace:
         raise ValueError(f"controller {name!r} is registered already ({_REGISTERED[name][1]}); pass replace=True")
+    if description is not None and (not isinstance(description, str) or not description.strip()):
+        raise ValueError(f"controller {name!r}: a description must be a non-empty string, got {description!r}")
     where = origin or f"register_controller ({getattr(factory, '__module__', '?')})"
     _REGISTERED[name] = (factory, where)
+    if description is not None:
+        _DESCRIPTIONS[name] = description.strip()
+    else:
+        _DESCRIPTIONS.pop(name, None)
 
 
 def unregister_controller(name: str) -> None:
@@ -54,6 +65,7 @@ def unregister_controller(name: str) -> None:
     if name not in _REGISTERED:
         raise ValueError(f"controller {name!r} was not registered with register_controller")
     del _REGISTERED[name]
+    _DESCRIPTIONS.pop(name, None)
 
 
 def _entry_points(group: str) -> dict[str, list[metadata.EntryPoint]]:
@@ -75,6 +87,45 @@ def registered_controllers() -> dict[str, str]:
     out = {name: " | ".join(_origin(ep) for ep in eps) for name, eps in _entry_points(GROUP).items()}
     out.update({name: origin for name, (_, origin) in _REGISTERED.items()})
     return dict(sorted(out.items()))
+
+
+def first_sentence(doc: str | None, width: int = DESCRIPTION_WIDTH) -> str | None:
+    """The first sentence of a docstring's first paragraph as plain text (reStructuredText's
+    ``literals`` and :role:`targets` unwrapped, whitespace collapsed; a sentence ends at a
+    full stop outside parentheses before a capital letter or the paragraph's end), cut to
+    ``width`` characters; None for no docstring."""
+    import re
+
+    if not doc or not doc.strip():
+        return None
+    para = " ".join(doc.strip().split("\n\n", 1)[0].split())
+    para = re.sub(r":[a-z]+:`~?([^`<]*?)(?:\s*<[^>]*>)?`", lambda m: m.group(1).rsplit(".", 1)[-1], para)
+    para = para.replace("``", "")
+    text, depth = para, 0
+    for k, ch in enumerate(para):  # a sentence ends at . ! ? outside parentheses, before a capital or the end
+        depth += (ch in "([") - (ch in ")]")
+        if ch in ".!?" and depth <= 0 and (k + 1 == len(para) or (para[k + 1] == " " and k + 2 < len(para)
+                                                                    and para[k + 2].isupper())):
+            text = para[:k + 1]
+            break
+    return text if len(text) <= width else text[:width - 3].rstrip() + "..."
+
+
+def describe_controller(name: str) -> str | None:
+    """What the controller ``name`` is, in one line: the ``description`` given to
+    :func:`register_controller`, else the factory's ``description`` attribute, else the first
+    sentence of its docstring (:func:`first_sentence`); None when it has none. A name that
+    does not resolve is None; one whose entry point does not load is the ``ValueError`` of
+    :func:`controller_factory`."""
+    if name in _DESCRIPTIONS:
+        return _DESCRIPTIONS[name]
+    factory = controller_factory(name)
+    if factory is None:
+        return None
+    own = getattr(factory, "description", None)
+    if isinstance(own, str) and own.strip():
+        return " ".join(own.split())
+    return first_sentence(getattr(factory, "__doc__", None))
 
 
 def controller_factory(name: str):

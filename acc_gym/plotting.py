@@ -1,7 +1,7 @@
 """Episode plots: speed, gap, acceleration and driver mode over time (headless, no pyplot).
 
 :func:`plot_episode` draws one scene of a :class:`~acc_gym.simulation.single_lane.WorldTrace`
-as four stacked panels sharing the time axis, in the manner of the MPC driver paper's
+as stacked panels sharing the time axis (those with nothing to show left out), in the manner of the MPC driver paper's
 result figures; :func:`save_figure` writes a figure atomically (temporary file in the
 same directory, then ``os.replace``), so a reader never sees a half-written image.
 """
@@ -36,13 +36,15 @@ def _colour(s: int) -> str:
 
 
 def plot_episode(trace, b: int = 0, *, title: str | None = None, path=None, scenario=None) -> Figure:
-    """Scene ``b`` of ``trace`` as a :class:`~matplotlib.figure.Figure` of four panels.
+    """Scene ``b`` of ``trace`` as a :class:`~matplotlib.figure.Figure` of up to four panels.
 
     From the top: speed [m/s] of each present vehicle (and the ego's set speed when
     ``scenario`` is given); bumper gap [m] of each vehicle to the one ahead (only
     vehicles that ever have one; ``inf`` stretches are left blank); applied acceleration
     [m/s^2]; each vehicle's driver mode as a step plot with the mode names as tick labels
-    (vehicles without a mode, e.g. the ego or scripted ones, are skipped). Acceleration
+    (vehicles without a mode, e.g. the ego or scripted ones, are skipped). A panel with nothing
+    to show -- no vehicle ever has one ahead, no vehicle has a driver mode -- is left out (the
+    figure is shorter). Acceleration
     and mode are held over the step that ends at each sample (``steps-pre``).
     ``scenario``: its id (and seed) go in the title. ``path``: also save a PNG there
     (atomically, see :func:`save_figure`).
@@ -55,40 +57,44 @@ def plot_episode(trace, b: int = 0, *, title: str | None = None, path=None, scen
         if np.shape(getattr(trace, name)) != (t.size, B, S):
             raise ValueError(f"trace.{name} must have shape {(t.size, B, S)}, got {np.shape(getattr(trace, name))}")
     slots = [s for s in range(S) if trace.present[b, s]]
+    has_gap = any(np.any(np.isfinite(np.asarray(trace.gap[:, b, s], dtype=float))) for s in slots)
+    has_mode = any(np.any(np.asarray(trace.mode[:, b, s]) >= 0) for s in slots)
+    panels = ["v", *(["gap"] if has_gap else []), "a", *(["mode"] if has_mode else [])]  # empty ones left out
 
-    fig = Figure(figsize=(8.0, 9.0), layout="constrained")
-    ax_v, ax_gap, ax_a, ax_mode = fig.subplots(4, 1, sharex=True)
+    fig = Figure(figsize=(8.0, 2.0 + 1.75 * len(panels)), layout="constrained")
+    axes = dict(zip(panels, np.atleast_1d(fig.subplots(len(panels), 1, sharex=True))))
+    ax_v, ax_a = axes["v"], axes["a"]
+    ax_gap, ax_mode = axes.get("gap"), axes.get("mode")
     for s in slots:
         style = dict(color=_colour(s), label=_label(s), lw=1.4)
         ax_v.plot(t, trace.v[:, b, s], **style)
         gap = np.asarray(trace.gap[:, b, s], dtype=float)
-        if np.any(np.isfinite(gap)):
+        if ax_gap is not None and np.any(np.isfinite(gap)):
             ax_gap.plot(t, np.where(np.isfinite(gap), gap, np.nan), **style)
         ax_a.plot(t, trace.a[:, b, s], drawstyle="steps-pre", **style)
         mode = np.asarray(trace.mode[:, b, s])
-        if np.any(mode >= 0):
+        if ax_mode is not None and np.any(mode >= 0):
             ax_mode.plot(t, np.where(mode >= 0, mode, np.nan), drawstyle="steps-pre", **style)
     if scenario is not None:
         ax_v.axhline(scenario.set_speed, color="0.4", ls="--", lw=1.0, label="set speed")
 
     ax_v.set_ylabel("speed [m/s]")
-    ax_gap.set_ylabel("gap [m]")
+    if ax_gap is not None:
+        ax_gap.set_ylabel("gap [m]")
     ax_a.set_ylabel("acceleration [m/s$^2$]")
     ax_a.axhline(0.0, color="0.7", lw=0.8, zorder=0)
-    ax_mode.set_ylabel("mode")
-    ax_mode.set_yticks(range(len(MODE_NAMES)), MODE_NAMES)
-    ax_mode.set_ylim(-0.5, len(MODE_NAMES) - 0.5)
-    ax_mode.set_xlabel("time [s]")
+    if ax_mode is not None:
+        ax_mode.set_ylabel("mode")
+        ax_mode.set_yticks(range(len(MODE_NAMES)), MODE_NAMES)
+        ax_mode.set_ylim(-0.5, len(MODE_NAMES) - 0.5)
+    bottom = axes[panels[-1]]
+    bottom.set_xlabel("time [s]")
     if t.size:
-        ax_mode.set_xlim(t[0], t[-1] if t[-1] > t[0] else t[0] + 1.0)
-    for ax in (ax_v, ax_gap, ax_a, ax_mode):
+        bottom.set_xlim(t[0], t[-1] if t[-1] > t[0] else t[0] + 1.0)
+    for ax in axes.values():
         ax.grid(True, alpha=0.3)
         if ax.get_lines() and any(not ln.get_label().startswith("_") for ln in ax.get_lines()):
             ax.legend(loc="best", fontsize=8)
-    if not ax_gap.get_lines():
-        ax_gap.text(0.5, 0.5, "no vehicle ahead", transform=ax_gap.transAxes, ha="center", va="center")
-    if not ax_mode.get_lines():
-        ax_mode.text(0.5, 0.5, "no driver modes", transform=ax_mode.transAxes, ha="center", va="center")
 
     parts = [title] if title else []
     if scenario is not None:

@@ -16,7 +16,7 @@ function. The steps:
 3. ``Scenario.with_driver("POV", profile)`` replaces the lead's driver by the trace
    (the scenario's ``drivers`` becomes ``"custom"``); the scenario is a plain value, saved
    as JSON and read back;
-4. each controller drives it in ``acc_gym/SingleLane-v0`` (``reset(options={"scenario":
+4. each controller drives it in ``acc_gym/SingleLane-v1`` (``reset(options={"scenario":
    sc})`` under the hood) and the episode is scored by paper 003's criteria.
 
 The same trace drives a column for string stability::
@@ -80,7 +80,7 @@ def main(argv=None) -> int:
           f"start gap {gap:.1f} m, set speed {sc.set_speed:.1f} m/s -> {path}")
 
     # 4. Each controller drives the scenario in the single-lane environment and is scored.
-    env = gym.make("acc_gym/SingleLane-v0")
+    env = gym.make("acc_gym/SingleLane-v1")
     try:
         for ref in args.controllers[:1] if args.quick else args.controllers:
             info, trace = run_episode(env, ref, scenario=sc, seed=0)

@@ -10,7 +10,7 @@ in [-1, 1] (``+1`` asks for the environment's ``accel_max``, 3 m/s^2; ``-1`` for
 ``decel_max``, 8 m/s^2). The same class runs under ``acc-gym evaluate``, the leaderboard
 and ``acc-gym string-stability``::
 
-    acc-gym evaluate hand_written_controller:TimeGapACC --episodes 20        # from examples/
+    acc-gym evaluate hand_written_controller:TimeGapACC --env acc_gym/CarFollowing-v1 --episodes 20   # from examples/
     acc-gym leaderboard --controllers acc hand_written_controller:TimeGapACC
 
 The leaderboard runs each controller in its own sandboxed process and loads it there by
@@ -66,9 +66,9 @@ def main(argv=None) -> int:
     from acc_gym.leaderboard import run_leaderboard
     from acc_gym.leaderboard.results import text_table
 
-    # 1. The evaluator: paper 003's car-following test, scored by its 100-point criteria.
-    #    The object itself is passed (a name or "module:attribute" works too).
-    summary = evaluate(TimeGapACC(), env_id="acc_gym/CarFollowing-v0", episodes=2 if args.quick else 20, seed=0)
+    # 1. The evaluator: car-following traffic (paper 003's test among it), scored by paper 003's
+    #    100-point criteria. The object itself is passed (a name or "module:attribute" works too).
+    summary = evaluate(TimeGapACC(), env_id="acc_gym/CarFollowing-v1", episodes=2 if args.quick else 20, seed=0)
     print(f"evaluate: mean score {summary['mean_score']:.1f} / 100, qualified "
           f"{summary['share_qualified']:.0%}, collisions {summary['collisions']} in {summary['episodes']} episodes")
 

@@ -4,6 +4,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from acc_gym.cli import main
@@ -97,3 +98,189 @@ def test_evaluate_prints_the_summary_and_rejects_bad_controllers(capsys, tmp_pat
         with pytest.raises(SystemExit):
             main(["evaluate", ref, "--episodes", "1"])
         assert message in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- errors name the subcommand
+@pytest.mark.parametrize("argv, usage", [
+    (["evaluate", "--episodes", "x"], "usage: acc-gym evaluate"),  # argparse's own (a type error)
+    (["evaluate", "acc", "--episodes", "0"], "usage: acc-gym evaluate"),  # the command's, after parsing
+    (["score", "no-such-file.csv"], "usage: acc-gym score"),
+    (["driver-demo", "--speed", "nan"], "usage: acc-gym driver-demo"),
+    (["campaign", "--suite", "bogus-v9", "--hours", "1", "--controller", "acc", "--out", "{tmp}/c"],
+     "usage: acc-gym campaign"),
+    (["string-stability", "acc", "--vehicles", "0"], "usage: acc-gym string-stability"),
+    (["conformance", "acc", "--standard", "iso9999"], "usage: acc-gym conformance"),
+])
+def test_an_error_prints_the_usage_of_its_subcommand(argv, usage, capsys, tmp_path):
+    with pytest.raises(SystemExit) as exc:
+        main([a.replace("{tmp}", str(tmp_path)) for a in argv])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2
+    assert err.startswith(usage) and f"{usage[len('usage: '):]}: error: " in err
+    assert "{scenarios,score,demo" not in err  # not the top-level usage listing every subcommand
+
+
+def test_a_controller_file_with_a_syntax_error_is_one_line_naming_the_file_and_line(tmp_path):
+    (tmp_path / "badctl.py").write_text("class C:\n    def predict(self, obs, deterministic=True)\n"
+                                        "        return [0.0], None\n")
+    (tmp_path / "raises.py").write_text("import math\n\nx = math.sqrt(-1)\n")
+    r = subprocess.run([sys.executable, "-m", "acc_gym.cli", "evaluate", "badctl:C", "--episodes", "1"],
+                       capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    last = r.stderr.strip().splitlines()[-1]
+    assert last == (f"acc-gym evaluate: error: controller 'badctl:C': {tmp_path / 'badctl.py'}, line 2: "
+                    "SyntaxError: expected ':'")
+    r = subprocess.run([sys.executable, "-m", "acc_gym.cli", "evaluate", "raises:x", "--episodes", "1"],
+                       capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert r.stderr.strip().splitlines()[-1] == (
+        f"acc-gym evaluate: error: controller 'raises:x': importing module 'raises' raised ValueError: math domain "
+        f"error ({tmp_path / 'raises.py'}, line 3)")
+
+
+# ---------------------------------------------------------------- score and evaluate: one report
+def test_score_reports_a_colliding_drive_as_the_environment_does(tmp_path, capsys):
+    """The same drive, scored by the environment (what ``evaluate`` and ``demo`` report) and by
+    ``acc-gym score`` from its CSV: the same u and min TTC (0 for a collision), and the same text."""
+    import gymnasium as gym
+
+    from acc_gym.evaluation import EgoTrace
+    from acc_gym.evaluation.runner import run_episode
+
+    env = gym.make("acc_gym/CarFollowing-v0", scenarios=("carfollowing/90",))
+    info, world = run_episode(env, "constant", seed=0, scenario="carfollowing/90")  # drives into the braking lead
+    sc = env.unwrapped.scenario
+    env.close()
+    assert info["report"]["metrics"]["collision"] and info["report"]["metrics"]["min_ttc"] == 0.0
+    path = tmp_path / "drive.csv"
+    EgoTrace.from_world(world, 0, sc).to_csv(path)
+    assert main(["score", str(path), "--set-speed", repr(sc.set_speed), "--time-gap", repr(sc.time_gap),
+                 "--json"]) == 0
+    scored = json.loads(capsys.readouterr().out)
+    for key in ("score", "u", "r1", "r2", "qualified"):
+        assert scored[key] == info["report"][key], key
+    assert scored["metrics"] == info["report"]["metrics"]
+    # the text: score prints what demo prints for the same report
+    from acc_gym.cli import _print_report
+
+    assert main(["score", str(path), "--set-speed", repr(sc.set_speed), "--time-gap", repr(sc.time_gap)]) == 0
+    text = capsys.readouterr().out
+    _print_report(info["report"])
+    assert text.split("\n", 1)[1] == capsys.readouterr().out
+
+
+def test_a_collision_has_a_time_to_collision_of_0_and_an_undefined_u_reads_n_a(tmp_path, capsys):
+    """A recorded drive that collides without ever closing in by its speed columns (a vehicle
+    ahead appears overlapping the ego, faster): min TTC is 0, not inf, and u (no steady
+    following, no set speed) is n/a, not nan -- in the text and the JSON alike."""
+    from acc_gym.evaluation import EgoTrace, score_episode
+    from acc_gym.evaluation.scoring import score_episode_reference
+
+    n = 20
+    gap = np.r_[np.full(5, np.inf), np.linspace(-0.5, 5.0, n - 5)]
+    tr = EgoTrace(t=np.arange(n) * 0.2, v=np.full(n, 10.0), a=np.zeros(n), gap=gap,
+                  v_lead=np.where(np.isfinite(gap), 12.0, 0.0))
+    for report in (score_episode(tr), score_episode_reference(tr)):  # the compiled score and its definition
+        assert report.metrics["collision"] and report.metrics["min_ttc"] == 0.0
+    path = tmp_path / "cut.csv"
+    tr.to_csv(path)
+    assert main(["score", str(path)]) == 0
+    text = capsys.readouterr().out
+    assert "u = n/a" in text and "min TTC 0.00 s" in text and "nan" not in text and "inf" not in text
+    assert main(["score", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["u"] is None and out["metrics"]["min_ttc"] == 0.0
+
+
+# ---------------------------------------------------------------- controllers: what each one is
+def test_controllers_lists_each_name_with_what_it_is(capsys):
+    from acc_gym.controllers import controller_factory, first_sentence, register_controller, \
+        registered_controllers, unregister_controller
+
+    class NoDoc:
+        def predict(self, obs, deterministic=True):
+            return np.zeros(1), None
+
+    NoDoc.__doc__ = None
+    register_controller("test-described", NoDoc, description="A test controller that brakes for nothing.")
+    register_controller("test-undocumented", NoDoc)
+    try:
+        assert main(["controllers"]) == 0
+        lines = capsys.readouterr().out.splitlines()
+    finally:
+        unregister_controller("test-described")
+        unregister_controller("test-undocumented")
+    names = registered_controllers()
+    rows = {line.split()[0]: line for line in lines}
+    assert set(rows) == set(names) | {"test-described", "test-undocumented"} and len(rows) == len(lines)
+    assert rows["constant"].endswith(f"[{names['constant']}]")  # where it comes from, on the same line
+    assert "Holds the set speed and ignores everything ahead: the floor every controller should beat." in rows["constant"]
+    assert rows["idm"].split(None, 1)[1].startswith("IDM (Treiber et al. 2000) at the scenario's set speed")
+    assert "A test controller that brakes for nothing." in rows["test-described"]
+    assert "(no description" in rows["test-undocumented"]
+    for name in ("acc", "gipps", "mpc"):  # every built-in's line is its docstring's first sentence
+        assert first_sentence(controller_factory(name).__doc__) in rows[name]
+    assert first_sentence("CACC (paper 004 Eq. 2): the ``law``, e.g. this. Then more.\n\nOther.") == \
+        "CACC (paper 004 Eq. 2): the law, e.g. this."
+    assert first_sentence(":class:`~acc_gym.vehicle.Vehicle` on a road") == "Vehicle on a road"
+    assert first_sentence("x " * 80).endswith("...") and len(first_sentence("x " * 80)) == 100
+
+
+# ---------------------------------------------------------------- conformance without the ncap extra
+def test_conformance_without_the_ncap_extra_says_what_to_install_and_what_is_still_judged(monkeypatch, capsys):
+    from acc_gym.standards import ncap
+
+    monkeypatch.setattr(ncap, "calculator_version", lambda: None)
+    for name in [m for m in sys.modules if m.split(".")[0] == "euroncap_rating_2026"] + ["euroncap_rating_2026"]:
+        monkeypatch.setitem(sys.modules, name, None)  # import euroncap_rating_2026 -> ImportError
+    monkeypatch.setattr(ncap, "ACC_POINTS", ncap.ACC_POINTS[:1])
+    monkeypatch.setattr(ncap, "FC_POINTS", ncap.FC_POINTS[:1])
+    assert main(["conformance", "acc", "--standard", "ncap"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "Scored by not installed" not in text
+    assert ("Not scored: the Euro NCAP score needs Euro NCAP's rating calculator (euroncap-rating-2026), which is "
+            'not installed: `pip install "acc-gym[ncap]"`.') in text
+    assert "every test point driven once and measured" in text and "ISO 15622" in text and "UN R157" in text
+    assert f"| {ncap.ACC_POINTS[0].scenario_id} |" in text  # the point was still driven and reported
+
+
+# ---------------------------------------------------------------- progress bars
+def test_a_progress_bar_is_drawn_on_a_terminal_only():
+    import io
+
+    from rich.console import Console
+
+    from acc_gym._progress import progress_bar
+
+    term = io.StringIO()
+    with progress_bar("risk", 128, unit="episodes", console=Console(file=term, force_terminal=True)) as bar:
+        assert bar.shown
+        bar.advance(64)
+    drawn = term.getvalue()
+    assert "risk" in drawn and "64/128" in drawn and "episodes" in drawn and "0:00:0" in drawn  # elapsed time
+    pipe = io.StringIO()
+    with progress_bar("risk", 128, console=Console(file=pipe, force_terminal=False)) as bar:
+        assert not bar.shown
+        bar.advance(64)
+    assert pipe.getvalue() == ""
+    off = io.StringIO()
+    with progress_bar("risk", 128, enabled=False, console=Console(file=off, force_terminal=True)) as bar:
+        bar.advance(64)
+    assert off.getvalue() == "" and not bar.shown
+
+
+@pytest.mark.parametrize("argv", [
+    ["string-stability", "acc", "--vehicles", "2", "--frequencies", "0.1", "--no-disturbance"],
+    ["conformance", "acc", "--standard", "iso15622", "--seeds", "0"],
+])
+def test_the_long_commands_draw_their_bar_on_stderr_and_json_keeps_both_streams_clean(argv):
+    import os
+
+    env = {**os.environ, "TTY_COMPATIBLE": "1", "COLUMNS": "120"}  # rich draws as on a terminal
+    r = subprocess.run([sys.executable, "-m", "acc_gym.cli", *argv], capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    assert argv[0] in r.stderr and "0:00:" in r.stderr  # the bar, with its elapsed time
+    r = subprocess.run([sys.executable, "-m", "acc_gym.cli", *argv, "--json"], capture_output=True, text=True,
+                       env=env)
+    assert r.returncode == 0 and r.stderr == ""
+    json.loads(r.stdout)  # one JSON object, nothing else

@@ -18,8 +18,8 @@ from acc_gym.evaluation.runner import load_controller
 
 ROOT = Path(__file__).resolve().parents[1]
 CLI = [sys.executable, "-c", "import sys; from acc_gym.cli import main; sys.exit(main(sys.argv[1:]))"]
-BUILTINS = ["acc", "cacc", "cc-driver", "constant", "fsm-driver", "fuzzy", "gipps", "gm", "idm", "mp-cacc", "mpc", "ppo",
-            "ppo-acc"]
+BUILTINS = ["acc", "cacc", "cc-driver", "constant", "follower-stopper", "fsm-driver", "fuzzy", "gipps", "gm", "idm",
+            "mp-cacc", "mpc", "pi-saturation", "ppo", "ppo-acc"]
 
 
 def imported_top_levels(path: Path) -> set[str]:
@@ -129,8 +129,8 @@ def test_a_third_party_distribution_registers_a_controller_by_entry_point(readab
     ev = run_cli(["evaluate", "third-acc", "--env", "acc_gym/NCAP-v0", "--episodes", "1", "--json"], root, root)
     assert ev.returncode == 0, ev.stderr
     assert json.loads(ev.stdout)["episodes"] == 1
-    lb = run_cli(["leaderboard", "--suite", "ncap-v1", "--controllers", "third-acc", "acc", "--episodes", "2",
-                  "--no-string-stability", "--no-iso15622", "--json", "--out", str(root / "board")], root, root)
+    lb = run_cli(["leaderboard", "--allow-root", "--suite", "ncap-v1", "--controllers", "third-acc", "acc",
+                  "--episodes", "2", "--no-string-stability", "--no-iso15622", "--json", "--out", str(root / "board")], root, root)
     assert lb.returncode == 0, lb.stderr
     ranking = {r["controller"]: r for r in json.loads(lb.stdout.splitlines()[-1])["ranking"]}
     assert ranking["third-acc"]["status"] == "ok" and ranking["acc"]["status"] == "ok"

@@ -135,3 +135,18 @@ def test_works_on_a_simulated_trace(tmp_path):
     assert [ln.get_label() for ln in vehicle_lines(ax_mode)] == [VEHICLES[s] for s in has_mode]
     assert sc.id in fig.get_suptitle()
     assert (tmp_path / "run.png").read_bytes()[:8] == PNG_SIGNATURE
+
+
+def test_panels_with_nothing_to_show_are_left_out():
+    """No driver modes (every non-MPC episode): three panels, time on the acceleration panel;
+    nobody ever ahead as well: two. The figure is shorter by what it leaves out."""
+    trace = synthetic_trace(present=(True, True, False))
+    four = plot_episode(trace)
+    trace.mode[:] = -1
+    fig = plot_episode(trace)
+    assert [ax.get_ylabel() for ax in fig.axes] == ["speed [m/s]", "gap [m]", "acceleration [m/s$^2$]"]
+    assert "time" in fig.axes[-1].get_xlabel()
+    assert fig.get_figheight() < four.get_figheight()
+    trace.gap[:] = np.inf
+    fig = plot_episode(trace)
+    assert [ax.get_ylabel() for ax in fig.axes] == ["speed [m/s]", "acceleration [m/s$^2$]"]

@@ -203,7 +203,8 @@ def _controller_ref(controller) -> str:
 
 def run_campaign(suite, hours: float, controller: str, out_dir, *, split: str = "test", root_seed: int | None = None,
                  workers: int = 1, scheduler=None, chunk_size: int = DEFAULT_CHUNK_SIZE,
-                 max_chunks: int | None = None, confidence: float = 0.95, on_chunk=None) -> dict:
+                 max_chunks: int | None = None, confidence: float = 0.95, on_chunk=None,
+                 on_start=None) -> dict:
     """Run (or resume) a campaign of ``hours`` of ``suite``'s traffic with ``controller``; return its summary.
 
     ``suite``: a registered name (``"singlelane-v3"``) or a suite object; ``split``: ``"dev"`` or
@@ -213,7 +214,8 @@ def run_campaign(suite, hours: float, controller: str, out_dir, *, split: str = 
     ``distributed.Client`` (see :mod:`acc_gym.campaigns.backends`); ``chunk_size``:
     scenarios per task and per file; ``max_chunks``: run at most that many missing chunks
     now (the rest on a later call); ``on_chunk(number, done, total)``: called after each
-    chunk file is written. Results go to ``out_dir``.
+    chunk file is written; ``on_start(done, total)``: once before the first chunk runs (the
+    chunks already there, and all of them). Results go to ``out_dir``.
     """
     require_pyarrow()
     hours = check_hours(hours)
@@ -274,6 +276,8 @@ def run_campaign(suite, hours: float, controller: str, out_dir, *, split: str = 
     from acc_gym.campaigns.backends import execute
 
     n_done, total = len(done.chunks_done), manifest["n_chunks"]
+    if on_start is not None:
+        on_start(n_done, total)
     results = execute(tasks, workers=workers, scheduler=scheduler, fingerprint=settings.fingerprint)
     try:
         for task, rows in results:

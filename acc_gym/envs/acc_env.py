@@ -357,6 +357,9 @@ class ACCEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
+        if options is not None and not isinstance(options, dict):
+            raise TypeError(f"reset(options=...) must be a dict (keys ['scenario', 'time_gap']) or None, got "
+                            f"{type(options).__name__} {options!r}")
         options = dict(options or {})
         scenario = options.pop("scenario", None)
         time_gap = check_time_gap(options.pop("time_gap", None))
@@ -443,9 +446,9 @@ class ACCEnv(gym.Env):
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human'")
             return None
-        from acc_gym.rendering import HumanViewer
+        from acc_gym.rendering import HumanViewer, frame_from_batch
 
-        frame = self.core.frame(0)
+        frame = frame_from_batch(self.core, 0)  # the top view with its HUD (acc_gym.rendering)
         if self.render_mode == "rgb_array":
             return frame
         if self._viewer is None:

@@ -460,16 +460,10 @@ class EpisodeBatch:
                 "scenario": sc.id, "scenario_seed": sc.seed, "episode_return": float(self.episode_return[row])}
 
     def frame(self, row: int, **kw) -> np.ndarray:
-        """A top-view RGB frame of scene ``row`` (:func:`acc_gym.rendering.render_frame`)."""
-        from acc_gym.rendering import render_frame
+        """A top-view RGB frame of scene ``row`` with its HUD (:func:`acc_gym.rendering.frame_from_batch`)."""
+        from acc_gym.rendering import frame_from_batch
 
-        if self.scenarios[row] is None:
-            raise RuntimeError("call reset() before render()")
-        w = self.world
-        modes = np.array([-1] + [int(s.info["mode"][row]) if "mode" in s.info and w.k[row] > 0 else -1
-                                 for s in self.slots])
-        return render_frame(w.x[row], w.y[row], w.present[row], w.lengths[row], w.width[row],
-                            self.scenarios[row].road, modes=modes, v=w.v[row], **kw)
+        return frame_from_batch(self, row, **kw)
 
     def trace(self, row: int) -> EgoTrace:
         """The current episode of scene ``row`` so far, as an :class:`EgoTrace`."""

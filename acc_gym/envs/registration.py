@@ -46,14 +46,74 @@ ENV_IDS = {
 }
 
 
+class V0IdWarning(DeprecationWarning):
+    """Making a ``-v0`` id: what its ``-v1`` changes (once per id and process)."""
+
+
+def v0_warning_text(env_id: str) -> str:
+    """The one sentence a ``-v0`` id warns with: what its ``-v1`` changes. It keeps gymnasium's
+    words "is out of date; you should consider upgrading", which the commands that pin ``-v0``
+    ids on purpose (the suites) filter."""
+    v1 = env_id[:-1] + "1"
+    changes = ["adds six safety-margin features to the observation", "rewards with MarginReward"]
+    if env_id == "acc_gym/CarFollowing-v0":
+        changes.append("draws varied car-following traffic, paper 003's test among it, behind naturalistic drivers")
+    said = ", ".join(changes[:-1]) + " and " + changes[-1]
+    return (f"{env_id} is out of date; you should consider upgrading to {v1}, which {said} ({env_id} stays "
+            f"registered, unchanged).")
+
+
+_WARNED: set[str] = set()  # the -v0 ids this process has warned about
+
+
+def _v0_id(kwargs: dict) -> str | None:
+    family = tuple(kwargs.get("default_scenarios", ()))
+    return next((i for i, (f, s) in ENV_IDS.items() if i.endswith("-v0") and tuple(f) == family), None)
+
+
+def _warn_v0(kwargs: dict) -> None:
+    env_id = _v0_id(kwargs)
+    if env_id is not None and env_id not in _WARNED:
+        import warnings
+
+        _WARNED.add(env_id)
+        # stacklevel: this, make_v0, gymnasium's make, the caller of gymnasium.make
+        warnings.warn(v0_warning_text(env_id), V0IdWarning, stacklevel=4)
+
+
+def make_v0(**kwargs):
+    """The ``-v0`` ids' entry point: :class:`~acc_gym.envs.acc_env.ACCEnv`, after the warning."""
+    from acc_gym.envs.acc_env import ACCEnv
+
+    _warn_v0(kwargs)
+    return ACCEnv(**kwargs)
+
+
+def make_v0_vector(num_envs: int = 1, **kwargs):
+    """The ``-v0`` ids' vector entry point: :class:`~acc_gym.envs.vector.ACCVectorEnv`, after the warning."""
+    from acc_gym.envs.vector import ACCVectorEnv
+
+    _warn_v0(kwargs)
+    return ACCVectorEnv(num_envs=num_envs, **kwargs)
+
+
 def register_envs() -> None:
+    import warnings
+
     from gymnasium.envs.registration import register, registry
 
+    # gymnasium's own notice for a -v0 id says only "out of date": ours says what -v1 changes,
+    # once per id and process; shown wherever the call is, as gymnasium shows its own deprecations
+    warnings.filterwarnings("ignore", message=r"(?s).*The environment acc_gym/\w+-v0 is out of date",
+                            category=DeprecationWarning)
+    warnings.filterwarnings("always", category=V0IdWarning)
     for env_id, (family, settings) in ENV_IDS.items():
         if env_id in registry:
             continue
-        register(id=env_id, entry_point="acc_gym.envs.acc_env:ACCEnv",
-                 vector_entry_point="acc_gym.envs.vector:ACCVectorEnv",
+        v0 = env_id.endswith("-v0")
+        register(id=env_id, entry_point="acc_gym.envs.registration:make_v0" if v0 else "acc_gym.envs.acc_env:ACCEnv",
+                 vector_entry_point=("acc_gym.envs.registration:make_v0_vector" if v0
+                                     else "acc_gym.envs.vector:ACCVectorEnv"),
                  kwargs={"default_scenarios": family, **settings})
 
 

@@ -116,6 +116,9 @@ class ACCVectorEnv(VectorEnv):
             seeds = list(seed)
             if len(seeds) != self.num_envs:
                 raise ValueError(f"reset(seed=...) needs {self.num_envs} seeds, got {len(seeds)}")
+        if options is not None and not isinstance(options, dict):
+            raise TypeError(f"reset(options=...) must be a dict (keys ['scenarios']) or None, got "
+                            f"{type(options).__name__} {options!r}")
         options = dict(options or {})
         scenarios = options.pop("scenarios", None)
         if options:

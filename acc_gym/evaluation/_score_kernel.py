@@ -291,10 +291,12 @@ def score(t, v, a, gap, v_lead, lead_id, a_y, d2, d3, p, tau1, grace, set_speed,
             max_ax = abs_a
         if abs_a <= a_x_comfort:
             n_comf += 1
-        if has:
+        if has:  # indicators.time_to_collision: 0 in contact, D1 / closing speed while closing in
             closing = vi - v_lead[i]
-            if closing > 0.0:
-                ttc = (g if g >= 0.0 else 0.0) / closing
+            if g <= 0.0:
+                min_ttc = 0.0
+            elif closing > 0.0:
+                ttc = g / closing
                 if ttc < min_ttc:
                     min_ttc = ttc
         if i > 0:

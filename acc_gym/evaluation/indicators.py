@@ -62,9 +62,11 @@ def comfort_j(acceleration, comfort_max: float, clip: bool = True) -> float:
 
 
 def time_to_collision(d1, v1, v0):
-    """D1 / (v1 - v0) where the ego closes in (inf elsewhere) [s]."""
+    """D1 / (v1 - v0) where the ego closes in, 0 where D1 <= 0 (in contact: the collision has
+    happened, whatever the speeds then), inf elsewhere [s]."""
     d1 = np.asarray(d1, float)
     closing = np.asarray(v1, float) - np.asarray(v0, float)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where((closing > 0) & np.isfinite(d1), np.maximum(d1, 0.0) / np.where(closing > 0, closing, 1.0),
-                        np.inf)
+        ttc = np.where((closing > 0) & np.isfinite(d1), np.maximum(d1, 0.0) / np.where(closing > 0, closing, 1.0),
+                       np.inf)
+    return np.where(d1 <= 0.0, 0.0, ttc)

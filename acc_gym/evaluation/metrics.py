@@ -5,7 +5,9 @@
   as paper 003's comfort indicator).
 * ``share_safe_spacing``: share of samples with a vehicle ahead (within sensor range)
   where Q >= 0; NaN if there is never one.
-* ``min_ttc`` [s]: smallest time-to-collision D1 / (v1 - v0) while closing in (inf if never).
+* ``min_ttc`` [s]: smallest time-to-collision D1 / (v1 - v0) while closing in, 0 once in
+  contact (D1 <= 0, so every collision has 0, however the speeds were then recorded), inf if
+  never closing in (:func:`acc_gym.evaluation.indicators.time_to_collision`).
 * ``max_jerk`` [m/s^3]: largest |da/dt| between consecutive samples.
 * ``speed_overshoot`` and ``damping_ratio``: how the ego's speed settles after a lead
   transient. Each time the lead holds a steady speed ``v*`` (|dv0/dt| <= 0.15 m/s^2 for at

@@ -64,6 +64,12 @@ def load_controller(ref):
         module = import_from_cwd(module_name)
     except ImportError as exc:
         raise ValueError(f"controller {ref!r}: cannot import module {module_name!r} ({exc})") from None
+    except SyntaxError as exc:  # the file and line, not the import machinery's traceback
+        where = f"{exc.filename}, line {exc.lineno}" if exc.filename else f"line {exc.lineno}"
+        raise ValueError(f"controller {ref!r}: {where}: {type(exc).__name__}: {exc.msg}") from None
+    except Exception as exc:  # noqa: BLE001  (the module's own code raised while it was imported)
+        raise ValueError(f"controller {ref!r}: importing module {module_name!r} raised "
+                         f"{_raised_where(exc)}") from None
     obj = module
     for part in attr.split("."):
         if not hasattr(obj, part):
@@ -74,6 +80,16 @@ def load_controller(ref):
     if not hasattr(obj, "predict"):
         raise ValueError(f"controller {ref!r} has no predict(obs, deterministic=True) method")
     return obj
+
+
+def _raised_where(exc: BaseException) -> str:
+    """``Type: message (file, line N)``: the exception and the deepest frame it came from."""
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    where = f" ({frames[-1].filename}, line {frames[-1].lineno})" if frames else ""
+    return f"{type(exc).__name__}: {text}{where}"
 
 
 def declared_time_gap(controller) -> float | None:

@@ -265,17 +265,33 @@ class EpisodeReport:
                 "config": self.config.to_json_dict()}
 
     def summary(self) -> str:
-        lines = [f"score {self.score:.1f} / 100 ({'qualified' if self.qualified else 'NOT qualified'})"]
-        for it in self.items:
-            state = "qualified" if it.qualified else "unqualified"
-            lines.append(f"  {it.name:<14} {it.requirement:<26} {state}{'' if it.applicable else ' (not applicable)'}")
-        lines.append(f"  efficiency     R1 = (1 - u) 20 = {self.r1:.2f}  (u = {self.u:.3f})")
-        lines.append(f"  comfort        R2 = {self.r2:.2f}  (j_x = {self.j_x:.3f}, j_y = {self.j_y:.3f})")
-        m = self.metrics
-        lines.append(f"  collision {m['collision']}, comfortable {m['share_comfortable']:.1%}, "
-                     f"safe spacing {m['share_safe_spacing']:.1%}, min TTC {m['min_ttc']:.2f} s, "
-                     f"max jerk {m['max_jerk']:.2f} m/s^3")
-        return "\n".join(lines)
+        """The report as text (:func:`report_text`)."""
+        return report_text(self.to_dict())
+
+
+def report_text(report: dict, header: bool = True) -> str:
+    """An episode report in :meth:`EpisodeReport.to_dict` form as the lines ``acc-gym score``,
+    ``demo`` and :meth:`EpisodeReport.summary` print (``header``: the score line first). An
+    undefined ``u`` (no car-following sample and no set speed) reads ``n/a``, a ``min_ttc``
+    that never came (never closing in) and a ``min_gap`` with nothing ahead ``none``."""
+    def num(x, fmt: str, missing: str, unit: str = "") -> str:
+        if x is None or isinstance(x, str) or not math.isfinite(x):
+            return missing
+        return f"{x:{fmt}}{unit}"
+
+    lines = [f"score {report['score']:.1f} / 100 ({'qualified' if report['qualified'] else 'NOT qualified'})"] \
+        if header else []
+    for name, item in report["items"].items():
+        state = "qualified" if item["qualified"] else "unqualified"
+        lines.append(f"  {name:<14} {item['requirement']:<26} {state}{'' if item['applicable'] else ' (not applicable)'}")
+    lines.append(f"  efficiency     R1 = (1 - u) 20 = {report['r1']:.2f}  (u = {num(report['u'], '.3f', 'n/a')})")
+    lines.append(f"  comfort        R2 = {report['r2']:.2f}  (j_x = {report['j_x']:.3f}, j_y = {report['j_y']:.3f})")
+    m = report["metrics"]
+    lines.append(f"  collision {m['collision']}, comfortable {m['share_comfortable']:.1%}, "
+                 f"safe spacing {num(m['share_safe_spacing'], '.1%', 'n/a')}, "
+                 f"min TTC {num(m['min_ttc'], '.2f', 'none', ' s')}, max jerk {m['max_jerk']:.2f} m/s^3, "
+                 f"min gap {num(m['min_gap'], '.2f', 'none', ' m')}")
+    return "\n".join(lines)
 
 
 def _after_transients(trace: EgoTrace, transient: float) -> np.ndarray:

@@ -43,9 +43,14 @@ def add_parser(sub) -> None:
 def run(args, parser) -> int:
     from acc_gym.controllers import make_controller
 
+    from acc_gym._progress import progress_bar
+
     params = number_params(args.param, parser)
     controller = args.controller
+    # one batched simulation: no count to show, but the time it has taken from the start
+    bar = progress_bar(f"string-stability: {args.vehicles} copies of {args.controller}", enabled=not args.json)
     try:
+        bar.start()
         if params:
             controller = make_controller(args.controller, **params)
             if controller is None:
@@ -57,7 +62,10 @@ def run(args, parser) -> int:
         report = ss.string_stability(controller, config, frequencies=args.frequencies,
                                      disturbance=not args.no_disturbance, trace=trace, name=args.controller)
     except (ValueError, TypeError) as exc:
+        bar.close()
         parser.error(str(exc))
+    finally:
+        bar.close()
     if args.plot:
         from acc_gym.plotting import plot_string_stability
 

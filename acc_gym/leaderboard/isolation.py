@@ -39,6 +39,7 @@ controller afresh, under the same total budget.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import time
@@ -189,6 +190,19 @@ class ControllerFailed(Exception):
         self.reason, self.tb = reason, tb
 
 
+def _ended(ctl, grace: float = 5.0) -> str:
+    """Why the controller's end of the socket closed: its process died (with its exit code), or
+    it closed the connection and lives on (the controller's fault either way, never the
+    simulation's)."""
+    import subprocess
+
+    try:
+        code = ctl.process.wait(timeout=grace)
+    except subprocess.TimeoutExpired:
+        return f"the controller closed its connection and kept running (killed after {grace:g} s)"
+    return f"the controller's process died (exit code {code})"
+
+
 def _exchange(ctl, obs, starts, slots, deadline_step: float | None, deadline_total: float, step_budget: float,
               budget: float, where: str):
     """One round trip; the controller's failures as :class:`ControllerFailed`."""
@@ -209,8 +223,7 @@ def _exchange(ctl, obs, starts, slots, deadline_step: float | None, deadline_tot
     except protocol.ProtocolError as exc:
         raise ControllerFailed(f"broke the protocol: {exc} (at {where})") from None
     except (protocol.Closed, OSError):
-        code = ctl.process.wait(timeout=5.0) if ctl.process.poll() is None else ctl.process.returncode
-        raise ControllerFailed(f"the controller's process died (exit code {code}) at {where}") from None
+        raise ControllerFailed(f"{_ended(ctl)} at {where}") from None
 
 
 def _hello(ctl, budget: float, deadline_total: float) -> float | None:
@@ -224,10 +237,10 @@ def _hello(ctl, budget: float, deadline_total: float) -> float | None:
     except protocol.ControllerError as exc:
         first, _, tb = str(exc).partition("\n")
         raise ControllerFailed(first, tb or None) from None
-    except (protocol.Closed, protocol.ProtocolError, OSError) as exc:
-        code = ctl.process.wait(timeout=5.0) if ctl.process.poll() is None else ctl.process.returncode
-        raise ControllerFailed(f"the controller's process ended while loading (exit code {code}; {exc!r})") \
-            from None
+    except (protocol.ProtocolError, OSError) as exc:
+        raise ControllerFailed(f"broke the protocol while loading: {exc}") from None
+    except protocol.Closed:
+        raise ControllerFailed(f"{_ended(ctl)} while loading") from None
 
 
 def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float, traces: bool, log_path: str,
@@ -239,7 +252,12 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
 
     die_with_parent(runner_pid)
     become_subreaper()
+    import shutil
+    import tempfile
     import warnings
+
+    private_dir = tempfile.mkdtemp(prefix="acc-gym-simulation-")  # nothing of anyone's to import
+    os.chdir(private_dir)
 
     # a suite pins its env id's version (a result names what it ran): gymnasium's advice to move
     # from -v0 to -v1 is noise in the leaderboard's output
@@ -393,6 +411,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
         kill_all(uid)  # anything left of the controller, before the runner hears "done"
         conn.send(("closed", None)) if not conn.closed else None
         conn.close()
+        shutil.rmtree(private_dir, ignore_errors=True)
 
 
 def _platoon(ctl, declared, step_budget: float, budget: float, deadline_total: float,
@@ -463,10 +482,42 @@ class Outcome:
     log: str | None = None
 
 
+@contextlib.contextmanager
+def trusted_start(empty: str):
+    """Around starting a simulation process: what multiprocessing's ``spawn`` gives the child
+    (and the resource tracker it starts once) is safe. Its interpreter runs ``-c``, which puts
+    the working directory first on ``sys.path`` until the parent's path replaces it, and that
+    path and the working directory are the parent's: for the start, the runner stands in a
+    private empty directory ``empty`` (it must outlive the start: the child changes into it),
+    with ``PYTHONSAFEPATH`` set (no directory is prepended) and its
+    ``sys.path`` reduced to :func:`~acc_gym.leaderboard.sandbox.trusted_path` (without the
+    working directory, where strangers' modules are). The runner is single-threaded here."""
+    import sys
+
+    from acc_gym.leaderboard.sandbox import CONTROLLER_PATH_ENV, controller_dirs, trusted_path
+
+    cwd, path = os.getcwd(), list(sys.path)
+    saved = {k: os.environ.get(k) for k in ("PYTHONSAFEPATH", CONTROLLER_PATH_ENV)}
+    try:
+        sys.path[:] = trusted_path()
+        os.environ[CONTROLLER_PATH_ENV] = os.pathsep.join(controller_dirs())  # the runner's, for the sandbox
+        os.environ["PYTHONSAFEPATH"] = "1"
+        os.chdir(empty)
+        yield
+    finally:
+        os.chdir(cwd)
+        sys.path[:] = path
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 class _Running:
     def __init__(self, ctx, reference: str, jobs: list, step_budget: float, budget: float, traces: bool,
                  log_path: str, uid: int | None, sandbox: str, in_flight: int, platoon: bool = False,
-                 iso15622: bool = False):
+                 iso15622: bool = False, start_dir: str | None = None):
         self.reference, self.jobs = reference, jobs
         self.outcome = Outcome(reference, episodes=[], log=log_path)
         self.ledger = Ledger(jobs)
@@ -476,7 +527,8 @@ class _Running:
                                    args=(child_conn, reference, jobs, step_budget, budget, traces, log_path, uid,
                                          sandbox, in_flight, os.getpid(), platoon, iso15622), daemon=False)
         self.started = time.monotonic()
-        self.process.start()
+        with trusted_start(start_dir):
+            self.process.start()
         child_conn.close()
 
     def receive(self) -> bool:
@@ -529,8 +581,8 @@ class _Running:
 
 def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_budget: float, budget: float,
                  traces: bool = False, progress=None, log_dir=None, uids: dict | None = None,
-                 sandbox: str = "process", in_flight: int = IN_FLIGHT, platoon: bool = False,
-                 iso15622: bool = False) -> dict[str, Outcome]:
+                 sandbox="process", in_flight: int = IN_FLIGHT, platoon: bool = False,
+                 iso15622: bool = False, limits=None) -> dict[str, Outcome]:
     """Run ``jobs`` for every controller, ``workers`` controllers at a time (module docstring).
 
     ``uids`` maps a reference to the user id its sandbox runs as (None: the runner's);
@@ -538,11 +590,20 @@ def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_b
     the order of ``references``; ``progress(outcome)`` is called as each one finishes. With
     ``platoon``, after its episodes each controller's string stability is measured through the
     same sandbox (``Outcome.string_stability``); with ``iso15622``, then its ISO 15622 verdict on the
-    ``iso15622-v1`` battery (``Outcome.iso15622``, :mod:`acc_gym.leaderboard.iso15622`)."""
+    ``iso15622-v1`` battery (``Outcome.iso15622``, :mod:`acc_gym.leaderboard.iso15622`).
+    ``sandbox``: a kind or a :class:`~acc_gym.leaderboard.sandbox.Sandbox`; ``limits``: its
+    :class:`~acc_gym.leaderboard.sandbox.Limits` (default: the sandbox's)."""
     import tempfile
+
+    from acc_gym.leaderboard.sandbox import Sandbox, as_sandbox
+
+    sandbox = as_sandbox(sandbox) if limits is None else Sandbox(as_sandbox(sandbox).kind, limits)
+
+    import shutil
 
     ctx = multiprocessing.get_context(START_METHOD)
     log_dir = log_dir or tempfile.mkdtemp(prefix="acc-gym-logs-")
+    start_dir = tempfile.mkdtemp(prefix="acc-gym-start-")  # empty: where simulations start (trusted_start)
     uids = uids or {}
     pending = list(references)
     running: list[_Running] = []
@@ -553,7 +614,7 @@ def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_b
             while pending and len(running) < workers:
                 ref = pending.pop(0)
                 running.append(_Running(ctx, ref, jobs, step_budget, budget, traces, log_file(log_dir, ref),
-                                        uids.get(ref), sandbox, in_flight, platoon, iso15622))
+                                        uids.get(ref), sandbox, in_flight, platoon, iso15622, start_dir))
             wait([r.conn for r in running] + [r.process.sentinel for r in running], timeout=POLL_S)
             now = time.monotonic()
             for r in list(running):
@@ -577,6 +638,7 @@ def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_b
             if r.process.is_alive():
                 r.process.kill()
                 r.process.join()
+        shutil.rmtree(start_dir, ignore_errors=True)
     return {ref: done[ref] for ref in references}
 
 

@@ -15,7 +15,8 @@ tag        direction           then
                                ``n`` uint16 slot numbers (which episode in flight each
                                row belongs to), then ``n * d`` float64 observations
 ``ACCA``   controller -> run   ``n`` float64 actions, one per row, in row order
-``ACCE``   controller -> run   an error: ``n`` bytes of UTF-8 text (at most 64 KiB)
+``ACCE``   controller -> run   an error: ``n`` bytes of UTF-8 text (at most 64 KiB;
+                               received through :func:`clean_text`)
 ``ACCB``   run -> controller   goodbye: the controller's process exits
 =========  ==================  ======================================================
 """
@@ -23,6 +24,7 @@ tag        direction           then
 from __future__ import annotations
 
 import math
+import re
 import socket
 import struct
 import time
@@ -36,6 +38,20 @@ HELLO, OBS, ACT, ERR, BYE = b"ACCH", b"ACCO", b"ACCA", b"ACCE", b"ACCB"
 MAX_ROWS = 4096
 MAX_DIM = 64
 MAX_TEXT = 65536  # [bytes] of an error message
+
+
+# what a terminal, a Markdown viewer or an editor would act on: escape sequences (CSI, OSC, the
+# two-byte ones, 8-bit CSI), every other C0 and C1 control but newline and tab (carriage return,
+# backspace, bell, ESC itself) and the bidirectional overrides that reorder a line on screen
+_ESCAPE = re.compile(r"\x1b(?:\[[0-?]*[ -/]*[@-~]|\][^\x07\x1b]*(?:\x07|\x1b\\)?|[PX^_][^\x1b]*(?:\x1b\\)?|"
+                     r"[ -/]*[0-~])|\x9b[0-?]*[ -/]*[@-~]")
+_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f-\x9f\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+
+
+def clean_text(text: str) -> str:
+    """``text`` from a controller's process as the runner may print and write it: escape
+    sequences removed, then every control character but newline and tab."""
+    return _CONTROL.sub("", _ESCAPE.sub("", text))
 
 
 class ProtocolError(RuntimeError):
@@ -103,7 +119,7 @@ def recv_actions(sock: socket.socket, n: int, deadline: float | None) -> np.ndar
     if tag == ERR:
         if a > MAX_TEXT:
             raise ProtocolError(f"an error message of {a} bytes (at most {MAX_TEXT})")
-        raise ControllerError(recv_exact(sock, a, deadline).decode("utf-8", "replace"))
+        raise ControllerError(clean_text(recv_exact(sock, a, deadline).decode("utf-8", "replace")))
     if tag != ACT:
         raise ProtocolError(f"expected actions, got a frame tagged {tag!r}")
     if a != n:
@@ -118,7 +134,7 @@ def recv_hello(sock: socket.socket, deadline: float | None) -> float | None:
     if tag == ERR:
         if a > MAX_TEXT:
             raise ProtocolError(f"an error message of {a} bytes (at most {MAX_TEXT})")
-        raise ControllerError(recv_exact(sock, a, deadline).decode("utf-8", "replace"))
+        raise ControllerError(clean_text(recv_exact(sock, a, deadline).decode("utf-8", "replace")))
     if tag != HELLO:
         raise ProtocolError(f"expected the ready message, got a frame tagged {tag!r}")
     if a != TIME_GAP.size:

@@ -13,7 +13,9 @@ What is hashed (decided here):
 
 * ``module:attribute`` -- the top-level module's files: a package's whole directory (every
   regular file under it, by relative path, ``__pycache__`` and ``*.pyc`` left out, so
-  weights and data files count), or a single module's file;
+  weights and data files count), or a single module's file -- that file only: the data a
+  single-file module reads beside it is not covered (its directory is usually the host's
+  working directory, holding anything); ship data inside a package to have it pinned;
 * a registered name -- the same for the module its entry point (or
   :func:`acc_gym.controllers.register_controller` factory) lives in: for the built-ins
   that is the installed ``acc_gym_agents`` package, shipped policy included;
@@ -64,12 +66,13 @@ def files_digest(root: Path) -> tuple[str, int]:
     return h.hexdigest(), len(items)
 
 
-def module_location(module: str, search: list[str]) -> Path | None:
+def module_location(module: str, search: list[str], meta_path: bool = True) -> Path | None:
     """The file or package directory the top-level module of ``module`` would import from
-    (``None`` if it is not found on ``search`` or is built into the interpreter)."""
+    (``None`` if it is not found on ``search`` -- nor, with ``meta_path``, by an installed
+    finder -- or is built into the interpreter)."""
     top = module.split(".")[0]
     spec = machinery.PathFinder.find_spec(top, search)
-    if spec is None:  # an editable install's finder (sys.meta_path): a top-level lookup imports nothing
+    if spec is None and meta_path:  # an editable install's finder (sys.meta_path): a top-level lookup imports nothing
         try:
             spec = importlib.util.find_spec(top)
         except (ImportError, ValueError):

@@ -197,6 +197,7 @@ def table_rows(results: dict) -> list[dict]:
                "collisions_per_hour": o and o["collisions_per_hour"], "comfortable": o and o["share_comfortable"],
                "safe_spacing": o and o["share_safe_spacing"], "min_ttc_s": o and o["min_ttc"],
                "max_jerk_mps3": o and o["max_jerk"], "episodes": len(c["episodes"]),
+               "collisions": o and o["collisions"],
                "preventable_collisions": o and o.get("preventable_collisions"),
                "non_preventable_collisions": o and o.get("non_preventable_collisions"),
                "collisions_r157": (o.get("preventable_collisions"), o.get("non_preventable_collisions"))
@@ -258,10 +259,13 @@ def _has_iso15622(results: dict) -> bool:
 
 
 def column_notes(results: dict) -> list[str]:
-    """The lines under the ranking table on the optional columns that ran (string stability, ISO 15622)."""
+    """The lines under the ranking table: the sandbox's warning if there is one (strangers' code ran as
+    root, ``--allow-root``), then the optional columns that ran (string stability, ISO 15622)."""
     from acc_gym.leaderboard import iso15622
 
-    return ([string_stability_note(results)] if _has_string_stability(results) else []) + \
+    warning = (results["manifest"].get("sandbox") or {}).get("warning")  # strangers' code ran as root
+    return ([warning] if warning else []) + \
+        ([string_stability_note(results)] if _has_string_stability(results) else []) + \
         ([iso15622.note(results)] if _has_iso15622(results) else [])
 
 
@@ -296,6 +300,7 @@ def _fmt(key: str, value) -> str:
 HEADERS = {"rank": "#", "controller": "controller", "status": "status", "points": "points", "score": "paper score",
            "qualified": "qualified",
            "collisions_per_hour": "collisions/h", "collisions_r157": "preventable / not (R157)",
+           "collisions": "collisions", "preventable_collisions": "preventable",
            "comfortable": "comfortable", "safe_spacing": "safe spacing",
            "min_ttc_s": "min TTC [s]", "max_jerk_mps3": "max jerk [m/s^3]", "episodes": "episodes",
            "wall_time_s": "time [s]", "vs_above": "vs above"}
@@ -304,7 +309,8 @@ HEADERS = {"rank": "#", "controller": "controller", "status": "status", "points"
 def display_columns(results: dict) -> list[tuple[str, str]]:
     """(key, header) of the printed / Markdown / HTML ranking table."""
     cols = [(k, HEADERS[k]) for k in ("rank", "controller", "status", "points", "vs_above", "score", "qualified",
-                                       "collisions_per_hour", "collisions_r157", "min_ttc_s", "comfortable",
+                                       "collisions", "collisions_per_hour", "collisions_r157", "min_ttc_s",
+                                       "comfortable",
                                        "safe_spacing", "max_jerk_mps3")]
     suites = results["manifest"]["suites"]
     if len(suites) > 1:
@@ -342,20 +348,97 @@ def formatted_rows(results: dict) -> tuple[list[str], list[list[str]]]:
 
 R157_NOTE = ("preventable / not (R157): collisions that UN R157's careful and competent driver (the built-in "
              "cc-driver) avoids in the same scenario / also has")
+COLLISIONS_NOTE = ("collisions: episodes that ended in a collision; preventable: those UN R157's careful and "
+                   "competent driver (the built-in cc-driver) avoids in the same scenario -- such an episode scores 0 "
+                   "points")
+RANK_NOTE = ("rank: by mean points (each suite weighs the same; points = the paper score, 0 for an episode that "
+             "ended in a preventable collision); the other columns, collisions among them, do not change it")
 UNCERTAINTY_NOTE = ("[low, high]: 95 % intervals (means: percentile bootstrap over episodes; qualified and collisions: "
                     "Clopper-Pearson); vs above: 'tie' when the paired difference in points to the row above is not "
                     "significant (95 % paired bootstrap interval contains 0), 'worse' when it is")
 
 
+TEXT_WIDTH = 120  # [characters] of the printed table and its notes
+NAME_WIDTH = 28  # [characters] a longer controller name is shortened in the printed table (the files keep it)
+#: the printed table's columns: always these, then the optional ones while the table fits TEXT_WIDTH
+TEXT_COLUMNS = ("rank", "controller", "points", "vs_above", "score", "collisions", "preventable_collisions",
+                "min_ttc_s")
+TEXT_OPTIONAL = ("qualified", "suites", "string_stability", "iso15622", "risk", "wall_time_s", "comfortable",
+                 "safe_spacing", "max_jerk_mps3", "collisions_per_hour", "episodes")
+
+
+def _short(name: str, width: int = NAME_WIDTH) -> str:
+    """``name`` in at most ``width`` characters (its middle elided with "...")."""
+    if len(name) <= width:
+        return name
+    keep = width - 3
+    return name[:keep // 2] + "..." + name[len(name) - (keep - keep // 2):]
+
+
+def _text_cells(results: dict) -> tuple[list[str], list[str], list[list[str]], list[str]]:
+    """Keys, headers and rows of the printed table, and the headers of the columns left out
+    (they are in the files): :data:`TEXT_COLUMNS`, then :data:`TEXT_OPTIONAL` in order while the
+    table stays within :data:`TEXT_WIDTH`."""
+    files = dict(display_columns(results))
+    optional = []
+    for key in TEXT_OPTIONAL:
+        if key == "suites":
+            optional += [k for k in files if k.startswith("points[")]
+        elif key in files:
+            optional.append(key)
+    rows = table_rows(results)
+
+    def cells(key: str) -> list[str]:
+        if key in ("points", "qualified"):  # the ranked figure and the share qualified with their intervals
+            return [_fmt_interval(key, r[key], r[f"{key}_ci_low"], r[f"{key}_ci_high"]) if r["status"] == "ok"
+                    else "failed" if key == "points" else "-" for r in rows]
+        if key == "controller":
+            return [_short(r[key]) for r in rows]
+        return [_fmt(key, r[key]) for r in rows]
+
+    def header(key: str) -> str:
+        return "points [95 % CI]" if key == "points" else HEADERS.get(key) or files[key]
+
+    def width(key: str, col: list[str]) -> int:
+        return max([len(header(key)), *(len(c) for c in col)])
+
+    keys = list(TEXT_COLUMNS)
+    columns = {k: cells(k) for k in keys}
+    total = sum(width(k, columns[k]) for k in keys) + 2 * (len(keys) - 1)
+    left_out = []
+    for key in optional:
+        col = cells(key)
+        if total + 2 + width(key, col) <= TEXT_WIDTH:
+            keys.append(key)
+            columns[key] = col
+            total += 2 + width(key, col)
+        else:
+            left_out.append(header(key))
+    return keys, [header(k) for k in keys], [[columns[k][i] for k in keys] for i in range(len(rows))], left_out
+
+
+def _wrapped(text: str, width: int = TEXT_WIDTH, indent: str = "  ") -> list[str]:
+    import textwrap
+
+    return textwrap.wrap(text, width, subsequent_indent=indent, break_long_words=True, break_on_hyphens=False) \
+        or [""]
+
+
 def text_table(results: dict) -> str:
-    """The ranking as aligned plain text (what the CLI prints), failures listed below it."""
-    headers, rows = formatted_rows(results)
+    """The ranking as aligned plain text (what the CLI prints), at most :data:`TEXT_WIDTH`
+    characters wide: the columns of :func:`_text_cells` (the others are named below it: they are
+    in results.csv, leaderboard.md and report.html), the notes wrapped, failures listed below."""
+    _, headers, rows, left_out = _text_cells(results)
     widths = [max(len(h), *(len(r[k]) for r in rows)) if rows else len(h) for k, h in enumerate(headers)]
-    lines = ["  ".join(h.ljust(w) for h, w in zip(headers, widths)),
+    lines = ["  ".join(h.ljust(w) for h, w in zip(headers, widths)).rstrip(),
              "  ".join("-" * w for w in widths)]
-    lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
-    lines += [UNCERTAINTY_NOTE, R157_NOTE, *column_notes(results)]
-    lines += [f"failed: {c['name']}: {c['reason']}" for c in results["controllers"] if c["status"] != "ok"]
+    lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows]
+    notes = [UNCERTAINTY_NOTE, COLLISIONS_NOTE, RANK_NOTE, *column_notes(results)]
+    if left_out:
+        notes.append(f"in results.csv, leaderboard.md and report.html: {', '.join(left_out)}")
+    notes += [f"failed: {c['name']}: {c['reason']}" for c in results["controllers"] if c["status"] != "ok"]
+    for note in notes:
+        lines += _wrapped(note)
     return "\n".join(lines)
 
 
@@ -399,17 +482,21 @@ KEY_FILE_ENV = "ACC_GYM_RESULTS_KEY_FILE"
 _NO_KEY = object()
 
 
-def results_key() -> bytes | None:
-    """The host's key for signing results (``None`` if neither variable is set)."""
+def results_key(run: bool = False) -> bytes | None:
+    """The host's key for signing results (``None`` if neither variable is set). Its file must be
+    readable by its owner only (:func:`acc_gym.suites.private.read_private_file`); for a ``run``
+    (controllers will run) the key itself in :data:`KEY_ENV` is refused: a process of the
+    host's user could read it in the runner's environment."""
+    from acc_gym.suites.private import read_private_file
+
     value, path = os.environ.get(KEY_ENV), os.environ.get(KEY_FILE_ENV)
     if value is not None and path is not None:
         raise ValueError(f"set one of {KEY_ENV} and {KEY_FILE_ENV}, not both")
+    if run and value is not None:
+        raise ValueError(f"the results key is in the environment ({KEY_ENV}), where a process of the same user can "
+                         f"read it: put it in a file only you can read (mode 0600) and name it in {KEY_FILE_ENV}")
     if path is not None:
-        try:
-            value = Path(path).read_bytes()
-        except OSError as exc:
-            raise ValueError(f"cannot read the results key file {path!r} (${KEY_FILE_ENV}): "
-                             f"{exc.strerror or exc}") from None
+        value = read_private_file(path, "the results key")
     if value is None:
         return None
     key = value.encode("utf-8") if isinstance(value, str) else value

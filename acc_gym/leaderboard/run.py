@@ -28,6 +28,7 @@ HTML report (:mod:`acc_gym.leaderboard.report`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import platform
@@ -107,6 +108,40 @@ def check_controllers(controllers) -> list[str]:
     return refs
 
 
+def _path_like(ref: str) -> bool:
+    return ":" not in ref and (os.sep in ref or "/" in ref or ref.endswith(".zip") or ref.startswith("."))
+
+
+def resolve_references(refs: list[str]) -> dict[str, str]:
+    """``{reference as given: reference as the controller's process is given it}``, resolved
+    here, in the trusted runner, from the directory the leaderboard is run from (the
+    controller's process runs in a directory of its own): a registered name and a
+    ``module:attribute`` stay as they are (the module is looked up from this directory too,
+    :func:`acc_gym.leaderboard.sandbox.search_path`); an existing file or directory (a saved
+    model, a run directory of ``acc-gym train``) becomes its absolute path. A reference that
+    looks like a path (a ``/``, a ``.zip``) and names nothing is a ``ValueError`` naming it and
+    the directory it was looked up in; two references to one path are one too."""
+    from acc_gym.controllers import registered_controllers
+
+    registered = registered_controllers()
+    out = {}
+    for ref in refs:
+        if ref in registered:
+            out[ref] = ref
+        elif os.path.exists(ref):
+            out[ref] = os.path.abspath(ref)
+        elif _path_like(ref):
+            raise ValueError(f"controller {ref!r}: no such file or directory (looked up from {os.getcwd()!r})")
+        else:
+            out[ref] = ref
+    seen: dict[str, str] = {}
+    for ref, resolved in out.items():
+        if resolved in seen:
+            raise ValueError(f"controllers {seen[resolved]!r} and {ref!r} are the same ({resolved!r})")
+        seen[resolved] = ref
+    return out
+
+
 class OutputError(OSError):
     """The results could not be written to ``path``; ``results`` holds them all the same."""
 
@@ -148,20 +183,23 @@ def publish(staging: Path, out: Path) -> None:
             shutil.rmtree(old, ignore_errors=True)
 
 
-def sandbox_settings(refs: list[str], sandbox: str) -> tuple[dict, dict]:
-    """Per-controller user ids and what the manifest says about the sandbox."""
-    from acc_gym.leaderboard.sandbox import SANDBOXES, UID_BASE, bwrap_problem, own_uid_possible
+def sandbox_settings(refs: list[str], sandbox: str, allow_root: bool = False, private: bool = False) \
+        -> tuple[dict, dict]:
+    """Per-controller user ids and what the manifest says about the sandbox (refusals:
+    :func:`acc_gym.leaderboard.sandbox.vet`)."""
+    from acc_gym.leaderboard.sandbox import SANDBOXES, UID_BASE, bwrap_problem, own_uid_possible, vet
 
     if sandbox not in SANDBOXES:
         raise ValueError(f"unknown sandbox {sandbox!r}; use one of {list(SANDBOXES)}")
     possible, why = own_uid_possible([r for r in refs if os.path.exists(r)])
+    warning = vet(refs, possible, why, allow_root, private)
     base = UID_BASE + 100 * (os.getpid() % 1_000_000)
     uids = {ref: base + k for k, ref in enumerate(refs)} if possible else {}
     if sandbox == "bwrap":  # refuse before anything runs, rather than rank every controller as crashed
         problem = bwrap_problem(base + 99 if possible else None)
         if problem is not None:
             raise RuntimeError(f"sandbox 'bwrap' is not usable: {problem}")
-    return uids, {"kind": sandbox, "uid_isolated": possible, "why_not": why or None}
+    return uids, {"kind": sandbox, "uid_isolated": possible, "why_not": why or None, "warning": warning}
 
 
 def _risk_settings(risk) -> dict | None:
@@ -204,7 +242,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                     step_budget: float = DEFAULT_STEP_BUDGET, budget: float = DEFAULT_BUDGET,
                     episodes: int | None = None, report: bool = True, progress=None, sandbox: str = "process",
                     show=None, secret=None, risk: dict | None = None, string_stability: bool = True,
-                    iso15622: bool = True) -> dict:
+                    iso15622: bool = True, allow_root: bool = False, limits=None, phase=None,
+                    warm: bool = True) -> dict:
     """Score ``controllers`` on ``suites`` (names; default all) and rank them; returns the results dict.
 
     ``out``: a directory to write results.json, results.csv, leaderboard.md, (with
@@ -213,10 +252,17 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     then replaces it, and a failed write raises :class:`OutputError` carrying the results.
     ``show(results)`` is called with the ranking before anything is written (the CLI
     prints it there). ``progress(outcome)`` is called as each controller ends.
+    ``controllers``: references resolved from the working directory (:func:`resolve_references`;
+    results name each controller as given, its ``reference`` is what ran).
+    ``warm``: compile the simulation's kernels first, in ``workers`` processes side by side
+    (:mod:`acc_gym.leaderboard.warmup`; seconds when they are cached). ``phase(name, notice)`` is
+    called as each stage starts: ``("kernels", text)`` before that (``text``: a notice when nothing
+    is cached yet, a first run: minutes; else None), ``("controllers", None)`` when they start.
     ``sandbox``: ``"process"`` or ``"bwrap"`` (:mod:`acc_gym.leaderboard.sandbox`).
     ``split``: ``"dev"``, ``"test"`` or ``"private"``; the private split's episodes come from
-    ``secret`` (bytes or text; default: the ``ACC_GYM_LEADERBOARD_SECRET`` environment
-    variable) and the manifest records only its commitment (:mod:`acc_gym.suites.private`).
+    ``secret`` (bytes or text, read by :func:`acc_gym.suites.private.read_secret` from a file
+    only its owner can read) and the manifest records only its commitment
+    (:mod:`acc_gym.suites.private`); a private run's files are the host's only (0600 in 0700).
     ``risk``: also estimate each controller's collision probability per encounter of a
     family by importance sampling, through the same sandbox
     (:func:`acc_gym.risk.isolated.leaderboard_risk`; a dict of its options: ``family``
@@ -229,6 +275,10 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     sandbox and ISO 15622's envelope is checked on its drives (:mod:`acc_gym.leaderboard.iso15622`;
     a few seconds each); the cell goes into each controller's ``iso15622`` and a column. Neither
     column changes points or ranks.
+    ``allow_root``: run strangers' code as root without a user id of its own (refused otherwise,
+    :func:`acc_gym.leaderboard.sandbox.vet`); the reports then carry the warning.
+    ``limits``: each controller's :class:`acc_gym.leaderboard.sandbox.Limits` (log, memory,
+    processes, /tmp, file size; default ``Limits()``).
     """
     from acc_gym.leaderboard.provenance import code_digest
     from acc_gym.suites import SPLITS, get_suite, list_suites
@@ -248,14 +298,20 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     elif secret is not None:
         raise ValueError(f"a secret is for the private split only (split {split!r} is public)")
     refs = check_controllers(controllers)
+    resolved = resolve_references(refs)
+    given = {v: k for k, v in resolved.items()}  # what ran -> the name it was given
     workers = _positive("workers", workers, integer=True)
     step_budget = _positive("step_budget", step_budget)
     budget = _positive("budget", budget)
     if episodes is not None:
         episodes = _positive("episodes", episodes, integer=True)
     traces = out is not None and report
-    key = results_key()  # read (and checked) before anything runs; controllers never see it
-    uids, sandbox_info = sandbox_settings(refs, sandbox)
+    key = results_key(run=True)  # read (and checked) before anything runs; controllers never see it
+    from acc_gym.leaderboard.sandbox import Limits, Sandbox, containment
+
+    sandbox = Sandbox(sandbox, limits or Limits())  # ValueError naming an unknown kind or a bad limit
+    uids, sandbox_info = sandbox_settings(list(resolved.values()), sandbox.kind, allow_root, split == private_split.PRIVATE)
+    sandbox_info.update(containment(sandbox))
     out_dir = check_output(out) if out is not None else None
 
     jobs, suite_info = [], []
@@ -276,7 +332,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                            "split": split, **info, "definition_hash": s.hash(),
                            "episodes_defined": len(built), "episodes_run": len(run),
                            "hours": sum(sc.duration for sc in run) / 3600.0})
-    code = {ref: code_digest(ref) for ref in refs}  # located, never run, in this process
+    code = {ref: code_digest(resolved[ref]) for ref in refs}  # located, never run, in this process
     risk = _risk_settings(risk)
 
     t0 = time.monotonic()
@@ -288,31 +344,52 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
         staging, logs = None, Path(tempfile.mkdtemp(prefix="acc-gym-logs-"))
     logs.mkdir(exist_ok=True)
     try:
-        outcomes = run_isolated(refs, jobs, workers=workers, step_budget=step_budget, budget=budget, traces=traces,
-                                progress=progress, log_dir=logs, uids=uids, sandbox=sandbox,
+        if warm:
+            from acc_gym.leaderboard.warmup import needs_compiling, warm_kernels
+
+            if phase is not None:
+                phase("kernels", "compiling the simulation's kernels: the first run on this machine takes minutes "
+                                 "longer, later runs load them in seconds" if needs_compiling() else None)
+            per_env: dict[str, int] = {}
+            for job in jobs:
+                per_env[job.env_id] = per_env.get(job.env_id, 0) + 1
+            warm_kernels({e: min(IN_FLIGHT, n) for e, n in per_env.items()}, processes=workers)
+
+        if phase is not None:
+            phase("controllers", None)
+
+        def told(outcome):  # the controller by the name it was given
+            progress(dataclasses.replace(outcome, reference=given.get(outcome.reference, outcome.reference)))
+
+        outcomes = run_isolated(list(resolved.values()), jobs, workers=workers, step_budget=step_budget,
+                                budget=budget, traces=traces, progress=None if progress is None else told,
+                                log_dir=logs, uids=uids, sandbox=sandbox,
                                 platoon=bool(string_stability), iso15622=bool(iso15622))
     except BaseException:
         if staging is not None:
             shutil.rmtree(staging, ignore_errors=True)
         raise
+    outcomes = {given[ran]: o for ran, o in outcomes.items()}
     risks = {}
     if risk is not None:
         from acc_gym.risk.isolated import leaderboard_risk
 
         run_kwargs = {"workers": 1, "step_budget": step_budget, "budget": budget, "log_dir": logs, "uids": uids,
                       "sandbox": sandbox}
-        risks = {ref: leaderboard_risk(ref, **risk, run_kwargs=run_kwargs) for ref, o in outcomes.items()
+        risks = {ref: leaderboard_risk(resolved[ref], **risk, run_kwargs=run_kwargs) for ref, o in outcomes.items()
                  if o.status == "ok"}
     entries, trace_map = [], {}
     for ref, o in outcomes.items():
         notes = []
         if o.trace is not None:
-            trace_map[ref] = o.trace
+            ep = o.episodes[o.trace["position"]]
+            scenario = next((j.scenario for j in jobs if (j.suite, j.episode) == (ep["suite"], ep["episode"])), None)
+            trace_map[ref] = {**o.trace, "scenario": scenario}  # the report re-scores it to say what cost points
             recorded = o.episodes[o.trace["position"]]["score"]
             if o.trace["score"] != recorded:
                 notes.append(f"not deterministic: its worst episode scored {recorded:.3f}, then "
                              f"{o.trace['score']:.3f} when re-run for the report")
-        entries.append({"name": ref, "reference": ref, "code": code[ref], "status": o.status, "reason": o.reason,
+        entries.append({"name": ref, "reference": resolved[ref], "code": code[ref], "status": o.status, "reason": o.reason,
                         "traceback": o.traceback, "wall_time_s": o.wall_time_s, "notes": notes,
                         "log": f"logs/{Path(o.log).name}" if staging is not None else o.log,
                         "summary": summarise_controller(o.episodes, names) if o.status == "ok" else None,
@@ -348,7 +425,12 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
         names = write_files(results, staging, html, key)
         umask = os.umask(0)
         os.umask(umask)
-        os.chmod(staging, 0o777 & ~umask)  # as a directory made with mkdir would be (mkdtemp's is private)
+        if split == private_split.PRIVATE:  # its episodes are the secret's: the host's eyes only
+            from acc_gym.leaderboard.sandbox import host_only
+
+            host_only(staging)
+        else:
+            os.chmod(staging, 0o777 & ~umask)  # as a directory made with mkdir would be (mkdtemp's is private)
         publish(staging, out_dir)
     except OSError as exc:
         shutil.rmtree(staging, ignore_errors=True)

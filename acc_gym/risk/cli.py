@@ -16,6 +16,7 @@ import math
 import os
 
 from acc_gym._cli_args import number_params
+from acc_gym.risk.episodes import CHUNK
 from acc_gym.risk.run import EVENTS, FAMILIES, RiskResult, estimate_risk
 
 
@@ -33,7 +34,11 @@ def add_parser(sub) -> None:
                    help="importance sampling (default) or crude Monte Carlo, for comparison")
     p.add_argument("--target-rhw", type=float, default=0.2, help="stop at this relative half-width of the 95 %% "
                                                                   "interval (default 0.2)")
-    p.add_argument("--budget", type=int, default=20000, help="at most this many episodes (default 20000)")
+    p.add_argument("--budget", type=int, default=20000,
+                   help="at most this many episodes, adaptive and estimation rounds together (default 20000; at "
+                        f"least {CHUNK}, one chunk: an adaptive round runs only if it leaves the estimation a chunk, "
+                        f"and the episodes run in whole chunks of {CHUNK}, so a budget that is not a multiple of "
+                        f"{CHUNK} is not spent to the last episode)")
     p.add_argument("--round-size", type=int, default=256, help="episodes per round (default 256)")
     p.add_argument("--max-rounds", type=int, default=10, help="adaptive cross-entropy rounds at most (default 10)")
     p.add_argument("--root-seed", type=int, default=0)

@@ -22,7 +22,10 @@
    ``round_size``, then rounds sized from the estimate so far to reach the target (see
    ``_planned``) -- until the relative half-width of the estimate is at most
    ``target_rhw`` with at least ``MIN_FAILURES`` failures, or ``budget`` episodes
-   (adaptive rounds included) are spent; :class:`RiskResult` says which. The estimate pools the estimation rounds
+   (adaptive rounds included) are spent; :class:`RiskResult` says which. ``budget`` is a
+   hard ceiling: an adaptive round runs only if it leaves the estimation at least one chunk
+   (``CHUNK`` episodes), and estimation rounds are cut to whole chunks of what is left, so a
+   run never spends more (and spends less when what is left is not a whole chunk). The estimate pools the estimation rounds
    only (the adaptive rounds' weights are valid too, but their proposals are poor).
 
 **Events.** ``collision``: the controller collides; ``ttc``: its smallest time-to-collision
@@ -265,6 +268,8 @@ def estimate_risk(controller, family: str = "cut-in", *, event: str = "collision
         raise ValueError(f"unknown method {method!r}; use 'is' (importance sampling) or 'crude' (Monte Carlo)")
     target_rhw = _check("target_rhw", target_rhw, upper=1.0)
     budget = _check("budget", budget, integer=True)
+    if budget < CHUNK:
+        raise ValueError(f"budget must be at least {CHUNK} episodes (one chunk), got {budget!r}")
     round_size = CHUNK * math.ceil(_check("round_size", round_size, integer=True) / CHUNK)
     max_rounds = _check("max_rounds", max_rounds, integer=True)
     workers = _check("workers", workers, integer=True)
@@ -343,10 +348,12 @@ def estimate_risk(controller, family: str = "cut-in", *, event: str = "collision
         return recs
 
     adaptive = method == "is"
-    proposal, pooled, rounds, stop = search(proposal, run_round, functools.partial(performance, event=event),
-                                            event=event, budget=budget, round_size=round_size,
-                                            max_rounds=max_rounds if adaptive else 0, target_rhw=target_rhw)
-    bar(None)
+    try:
+        proposal, pooled, rounds, stop = search(proposal, run_round, functools.partial(performance, event=event),
+                                                event=event, budget=budget, round_size=round_size,
+                                                max_rounds=max_rounds if adaptive else 0, target_rhw=target_rhw)
+    finally:
+        bar(None)
     e = exposure(rounds)
     est = estimate_records(pooled, performance(pooled, event), event, spent, e)
     second = other_event(event)
@@ -375,8 +382,10 @@ def search(proposal: Proposal, simulate, perf, *, event: str = "collision", budg
     spent = 0
     rnd = 0
     failures_seen: list[dict] = []  # of every adaptive round: each weighed against its own round's proposal
+    if budget < CHUNK:
+        raise ValueError(f"budget must be at least {CHUNK} episodes (one chunk), got {budget!r}")
     for _ in range(max_rounds):
-        if spent + round_size > budget:
+        if spent + round_size + CHUNK > budget:  # an adaptive round must leave the estimation a chunk
             break
         recs = simulate(rnd, proposal, round_size)
         spent += len(recs)
@@ -461,19 +470,16 @@ def _version() -> str:
 
 
 def _progress(enabled: bool, total: int):
-    """A callable ``bar(n)`` advancing a progress bar by ``n`` episodes (``bar(None)`` closes it)."""
-    if not enabled:
-        return lambda n: None
-    try:
-        from tqdm import tqdm
-    except ImportError:  # without tqdm: nothing (the CLI prints each round)
-        return lambda n: None
-    bar = tqdm(total=total, unit="episode", desc="risk", leave=False)
+    """A callable ``bar(n)`` advancing a progress bar on stderr by ``n`` episodes of at most
+    ``total`` (``bar(None)`` closes it; :mod:`acc_gym._progress`: shown on a terminal only)."""
+    from acc_gym._progress import progress_bar
+
+    bar = progress_bar("risk", total, unit="episodes", enabled=enabled).start()
 
     def advance(n):
         if n is None:
             bar.close()
         else:
-            bar.update(n)
+            bar.advance(n)
 
     return advance

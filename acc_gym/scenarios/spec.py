@@ -37,16 +37,24 @@ DRIVER_MODELS = ("mpc", "profile", *sorted(MODELS))
 MAX_DURATION = 7200.0  # [s] two hours: the env allocates the episode's record at reset
 MAX_SPEED = 70.0  # [m/s] 252 km/h: initial speeds, profile speeds, the set speed (the observation's bound)
 MAX_TIME_GAP = 10.0  # [s]
+# |x0| [m]: float64 keeps positions to 1.2e-10 m there (at 1e15 m only to 0.125 m, and scores drift)
+MAX_POSITION = 1e6
+MAX_LENGTH = 50.0  # [m] a vehicle's length (a road train is about 25 m)
+MAX_WIDTH = 5.0  # [m] a vehicle's width (a lane is about 3.5 m)
+MAX_PROFILE_ACCEL = 20.0  # [m/s^2] |dv/dt| between a speed profile's points: 2 g, beyond any road vehicle
+MAX_DRIVER_PARAM = 1e9  # |value| of any driver-model parameter: the MPC cost weights of the populations reach ~1e7 (q1)
 # driver parameters that are speeds [m/s] (desired / set / top speed): bounded like the vehicles' speeds
 DRIVER_SPEED_PARAMS = ("v_desired", "v_max", "v_set")
 _NUMBER = (int, float, np.integer, np.floating)
 _PARAM_NAMES: dict = {}  # a driver model's parameter dataclass -> its fields' names
 
 
-def _finite(name: str, value, *, positive=False, nonnegative=False, at_most: float | None = None) -> float:
-    """``value`` as a float: a real number (not a bool, not text), finite, within the bounds."""
+def _finite(name: str, value, *, positive=False, nonnegative=False, at_most: float | None = None,
+            magnitude: float | None = None) -> float:
+    """``value`` as a float: a real number (not a bool, not text), finite, within the bounds
+    (``magnitude``: ``|value|`` at most that)."""
     if (type(value) is float and value - value == 0.0 and (not positive or value > 0) and (not nonnegative or value >= 0)
-            and (at_most is None or value <= at_most)):
+            and (at_most is None or value <= at_most) and (magnitude is None or abs(value) <= magnitude)):
         return value  # a finite Python float within the bounds (the usual case): what the checks below return
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, _NUMBER):
         raise ValueError(f"{name} must be a number, got {value!r} ({type(value).__name__})")
@@ -59,6 +67,8 @@ def _finite(name: str, value, *, positive=False, nonnegative=False, at_most: flo
         raise ValueError(f"{name} must be >= 0, got {value!r}")
     if at_most is not None and x > at_most:
         raise ValueError(f"{name} must be at most {at_most:g}, got {value!r}")
+    if magnitude is not None and abs(x) > magnitude:
+        raise ValueError(f"{name} must be within -{magnitude:g} and {magnitude:g}, got {value!r}")
     return x
 
 
@@ -95,14 +105,18 @@ class DriverSpec:
         if not isinstance(self.params, dict):
             raise ValueError(f"driver params must be a JSON object, got {type(self.params).__name__}")
         params = self.params
-        if all(type(k) is str and type(v) is float and v - v == 0.0 for k, v in params.items()):
-            params = dict(params)  # finite floats by name (a builder's): as below
+        if all(type(k) is str and type(v) is float and -MAX_DRIVER_PARAM <= v <= MAX_DRIVER_PARAM
+               for k, v in params.items()):
+            params = dict(params)  # finite floats by name within the bound (a builder's): as below
         else:
             params = {str(k): _finite(f"driver params[{k!r}]", v) for k, v in params.items()}
         for name in DRIVER_SPEED_PARAMS:
             if name in params and not 0.0 <= params[name] <= MAX_SPEED:
                 _finite(f"driver params[{name!r}] (a speed of model {self.model!r})", params[name], nonnegative=True,
                         at_most=MAX_SPEED)
+        for k, v in params.items():
+            if not -MAX_DRIVER_PARAM <= v <= MAX_DRIVER_PARAM:
+                _finite(f"driver params[{k!r}] (MAX_DRIVER_PARAM)", v, magnitude=MAX_DRIVER_PARAM)
         if self.model == "profile" and params:
             raise ValueError(f"a 'profile' driver takes no parameters, got {sorted(params)}")
         object.__setattr__(self, "params", params)
@@ -112,6 +126,12 @@ class DriverSpec:
             t = tuple(_finite("profile time", v) for v in self.times)
             s = tuple(_finite("profile speed", v, nonnegative=True, at_most=MAX_SPEED) for v in self.speeds)
             SpeedProfile(np.array(t), np.array(s))  # validates ordering and lengths
+            for k in range(len(t) - 1):
+                rate = abs(s[k + 1] - s[k]) / (t[k + 1] - t[k])
+                if rate > MAX_PROFILE_ACCEL:
+                    raise ValueError(f"profile speed changes from {s[k]:g} to {s[k + 1]:g} m/s between t = {t[k]:g} "
+                                     f"and {t[k + 1]:g} s: {rate:g} m/s^2, more than a road vehicle's "
+                                     f"{MAX_PROFILE_ACCEL:g} m/s^2 (MAX_PROFILE_ACCEL)")
             object.__setattr__(self, "times", t)
             object.__setattr__(self, "speeds", s)
         elif self.times is not None or self.speeds is not None:
@@ -198,8 +218,8 @@ class VehicleSpec:
             raise ValueError(f"unknown vehicle role {self.role!r}; use one of {ROLES}")
         x0, v0, length, width = self.x0, self.v0, self.length, self.width
         if (type(x0) is float and type(v0) is float and type(length) is float and type(width) is float
-                and type(self.lane) is int and x0 - x0 == 0.0 and 0.0 <= v0 <= MAX_SPEED and 0.0 < length < math.inf
-                and 0.0 < width < math.inf and self.lane >= 0):
+                and type(self.lane) is int and -MAX_POSITION <= x0 <= MAX_POSITION and 0.0 <= v0 <= MAX_SPEED
+                and 0.0 < length <= MAX_LENGTH and 0.0 < width <= MAX_WIDTH and self.lane >= 0):
             pass  # plain numbers within the bounds (a builder's): what the checks below would store
         else:
             self._check_numbers()
@@ -209,11 +229,13 @@ class VehicleSpec:
             raise ValueError(f"{self.role} needs a driver")
 
     def _check_numbers(self) -> None:
-        object.__setattr__(self, "x0", _finite(f"{self.role}.x0", self.x0))
+        object.__setattr__(self, "x0", _finite(f"{self.role}.x0", self.x0, magnitude=MAX_POSITION))
         object.__setattr__(self, "v0", _finite(f"{self.role}.v0 (initial speed)", self.v0, nonnegative=True,
                                                at_most=MAX_SPEED))
-        object.__setattr__(self, "length", _finite(f"{self.role}.length", self.length, positive=True))
-        object.__setattr__(self, "width", _finite(f"{self.role}.width", self.width, positive=True))
+        object.__setattr__(self, "length", _finite(f"{self.role}.length", self.length, positive=True,
+                                                   at_most=MAX_LENGTH))
+        object.__setattr__(self, "width", _finite(f"{self.role}.width", self.width, positive=True,
+                                                  at_most=MAX_WIDTH))
         object.__setattr__(self, "lane", _integer(f"{self.role}.lane (a lane index)", self.lane))
 
     def to_dict(self) -> dict:

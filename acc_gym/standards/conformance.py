@@ -32,23 +32,46 @@ from acc_gym.standards import battery as batteries
 from acc_gym.standards import iso15622
 
 STANDARDS = ("iso15622", "r157", "ncap")
+NCAP_INSTALL = 'pip install "acc-gym[ncap]"'  # what Euro NCAP's score needs
 R157_REFERENCES = ("cc-driver", "fsm-driver")
 
 
+def work(standards, seeds=batteries.SEEDS) -> int:
+    """How many drives, cases and test points :func:`conformance` runs for ``standards`` (what
+    its ``progress`` counts to)."""
+    n = 0
+    if "iso15622" in standards:
+        n += len(batteries.battery_cases(batteries.ISO15622_V1, seeds))
+    if "r157" in standards:
+        from acc_gym.standards.r157 import grid
+
+        n += len(grid())
+    if "ncap" in standards:
+        from acc_gym.standards.ncap import ACC_POINTS, FC_POINTS
+
+        n += len(ACC_POINTS) + len(FC_POINTS)
+    return n
+
+
 def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name: str | None = None,
-                r157_reference: str = "cc-driver") -> dict:
+                r157_reference: str = "cc-driver", progress=None) -> dict:
     """The verdicts of ``controller`` by each of ``standards`` (JSON-safe), and the drives for plots
     under the key ``"_drives"`` (dropped by :func:`to_json`). ``r157_reference``: R157's reference
     driver, ``cc-driver`` (the careful and competent driver) or ``fsm-driver`` (the JRC's Fuzzy
-    Safety Model); the cases' ``cc_driver_collides`` key holds the reference's outcome either way."""
+    Safety Model); the cases' ``cc_driver_collides`` key holds the reference's outcome either way.
+    ``progress(stage, n)``: told the standard being judged (``n`` 0) and each ``n`` drives, cases
+    or test points done (:func:`work` counts them all)."""
     standards = list(standards)
     unknown = [s for s in standards if s not in STANDARDS]
     if unknown or not standards:
         raise ValueError(f"unknown standard(s) {unknown or standards!r}; choose from {list(STANDARDS)} or 'all'")
+    tell = progress if progress is not None else (lambda stage, n: None)
     out = {"controller": name or (controller if isinstance(controller, str) else type(controller).__name__),
            "standards": {}}
     if "iso15622" in standards:
-        drives, errors, _ = batteries.run_battery(controller, batteries.ISO15622_V1, seeds)
+        tell("ISO 15622", 0)
+        drives, errors, _ = batteries.run_battery(controller, batteries.ISO15622_V1, seeds,
+                                                  progress=lambda _name: tell("ISO 15622", 1))
         report = iso15622.check_drives(drives)
         report.errors = errors
         out["standards"]["iso15622"] = {**report.to_dict(), "battery": batteries.ISO15622_V1,
@@ -59,11 +82,14 @@ def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name
 
         if r157_reference not in R157_REFERENCES:
             raise ValueError(f"unknown R157 reference {r157_reference!r}; choose from {list(R157_REFERENCES)}")
+        tell("UN R157", 0)
         out["standards"]["r157"] = r157_cases(controller, reference=r157_reference)
+        tell("UN R157", len(out["standards"]["r157"]["cases"]))
     if "ncap" in standards:
         from acc_gym.standards.ncap import ncap_report
 
-        out["standards"]["ncap"] = ncap_report(controller)
+        tell("Euro NCAP", 0)
+        out["standards"]["ncap"] = ncap_report(controller, progress=lambda _sid: tell("Euro NCAP", 1))
     return out
 
 
@@ -126,9 +152,18 @@ def markdown(result: dict) -> str:
 def ncap_markdown(ncap: dict) -> list:
     """The Euro NCAP section's lines (:func:`acc_gym.standards.ncap.ncap_report`'s result)."""
     pct = ncap["score_percent"]
-    lines = [f"## {ncap['protocol']}: {'not scored' if pct is None else f'**{pct:.1f} %**'}", "",
-             f"Scored by {ncap['calculator']}, each test point simulated once (a green prediction per point: the "
-             "score is what the measured speed reduction earns).", ""]
+    if pct is None:  # the rating calculator is not installed: say what is missing and what still counts
+        from acc_gym.standards.ncap import DISTRIBUTION as NCAP_DISTRIBUTION
+
+        lines = [f"## {ncap['protocol']}: not scored", "",
+                 f"**Not scored: the Euro NCAP score needs Euro NCAP's rating calculator ({NCAP_DISTRIBUTION}), "
+                 f"which is not installed: `{NCAP_INSTALL}`.** Still reported below: every test point driven once "
+                 "and measured (collision, impact speed, speed reduction) and the frontal-collision points; the "
+                 "other standards (ISO 15622's envelope, UN R157's preventability) are judged in full.", ""]
+    else:
+        lines = [f"## {ncap['protocol']}: **{pct:.1f} %**", "",
+                 f"Scored by {ncap['calculator']}, each test point simulated once (a green prediction per point: the "
+                 "score is what the measured speed reduction earns).", ""]
     if ncap["test_types"]:
         lines += ["| test type | score | of | % |", "|---|---|---|---|"]
         for name, t in ncap["test_types"].items():
@@ -274,9 +309,20 @@ def add_parser(sub) -> None:
 
 def run(args, parser) -> int:
     standards = list(STANDARDS) if args.standard == "all" else [s.strip() for s in args.standard.split(",")]
+    from acc_gym._progress import progress_bar
+
     try:
-        result = conformance(args.controller, standards, tuple(args.seeds), name=args.controller,
-                             r157_reference=args.r157_reference)
+        bar = progress_bar("conformance", unit="drives", enabled=not args.json)
+        with bar:
+            if bar.shown:
+                bar.update(total=work(standards, tuple(args.seeds)))
+
+            def tell(stage, n):
+                bar.update(description=f"conformance: {stage}")
+                bar.advance(n)
+
+            result = conformance(args.controller, standards, tuple(args.seeds), name=args.controller,
+                                 r157_reference=args.r157_reference, progress=tell)
     except (ValueError, TypeError) as exc:
         parser.error(str(exc))
     files = write_reports(result, args.out) if args.out else None

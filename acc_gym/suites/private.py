@@ -2,8 +2,8 @@
 
 The ``dev`` and ``test`` splits ship with the package, in a fixed order: anyone can run
 them offline and tune a controller to them, episode by episode. For an official ranking
-the host keeps a secret (a file, or the environment variable :data:`SECRET_ENV`) and runs
-``acc-gym leaderboard --split private --secret FILE``:
+the host keeps a secret in a file only its owner can read (mode 0600; never in the
+environment: :func:`read_secret`) and runs ``acc-gym leaderboard --split private --secret FILE``:
 
 * each suite's private root seed is ``HMAC-SHA256(secret, "acc_gym.suites:<name>:private")``
   (its first 8 bytes), so the episodes are a pure function of (secret, suite) -- the same
@@ -19,7 +19,9 @@ Intended use: **develop on dev, publish reproducible tables on test, rank offici
 private.** The per-episode records in ``results.json`` and ``report.html`` of a private
 run name the episodes they ran (scenario id, parameters, seed): publish the ranking
 (``leaderboard.md``, ``results.csv``), keep those two files with the host, and choose a
-new secret once they are out. A secret shorter than :data:`MIN_SECRET_BYTES` bytes is
+new secret once they are out. The leaderboard writes a private run's files readable by the
+host only (0600 files in a 0700 directory) and runs strangers' controllers on it only under
+user ids of their own (:func:`acc_gym.leaderboard.sandbox.vet`). A secret shorter than :data:`MIN_SECRET_BYTES` bytes is
 refused (it could be guessed and the episodes regenerated).
 """
 
@@ -43,24 +45,39 @@ def check_secret(secret, where: str = "the secret") -> bytes:
     secret = bytes(secret).strip()
     if len(secret) < MIN_SECRET_BYTES:
         raise ValueError(f"{where} is {len(secret)} bytes long; a private split needs at least {MIN_SECRET_BYTES} "
-                         f"(e.g. python -c 'import secrets; print(secrets.token_hex(32))' > secret.txt)")
+                         f"(e.g. (umask 077; python -c 'import secrets; print(secrets.token_hex(32))' > secret.txt))")
     return secret
 
 
+def read_private_file(path, what: str) -> bytes:
+    """The bytes of ``path``, a file only its owner may read: ``ValueError`` naming the file and
+    its mode when group or others may read or write it (``chmod 600``), or when it cannot be read."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            mode = os.fstat(f.fileno()).st_mode
+            data = f.read()
+    except OSError as exc:
+        raise ValueError(f"cannot read {what} file {str(path)!r}: {exc.strerror or exc}") from None
+    if mode & 0o077:
+        raise ValueError(f"{what} file {str(path)!r} is mode {mode & 0o777:04o}: group or others may read it; "
+                         f"it must be readable by its owner only (chmod 600 {str(path)!r})")
+    return data
+
+
 def read_secret(path=None) -> bytes:
-    """The secret in the file ``path`` (surrounding whitespace removed), or, without a path,
-    in the environment variable :data:`SECRET_ENV`; ``ValueError`` naming what is missing."""
-    if path is not None:
-        path = Path(path)
-        try:
-            data = path.read_bytes()
-        except OSError as exc:
-            raise ValueError(f"cannot read the secret file {str(path)!r}: {exc.strerror or exc}") from None
-        return check_secret(data, f"the secret in {str(path)!r}")
-    value = os.environ.get(SECRET_ENV)
-    if value is None:
-        raise ValueError(f"the private split needs a secret: --secret FILE, or the environment variable {SECRET_ENV}")
-    return check_secret(value, f"the secret in ${SECRET_ENV}")
+    """The secret in the file ``path`` (surrounding whitespace removed), which only its owner may
+    read (:func:`read_private_file`). Never from the environment: ``ValueError`` when no path
+    is given, or when :data:`SECRET_ENV` is set (a process of the host's user could read it in
+    the runner's environment)."""
+    if os.environ.get(SECRET_ENV) is not None:
+        raise ValueError(f"the environment variable {SECRET_ENV} is set: the secret is read from a file only "
+                         f"(--secret FILE, mode 0600), never from the environment, where a process of the same "
+                         f"user can read it; unset it")
+    if path is None:
+        raise ValueError("the private split needs a secret: --secret FILE, a file only its owner can read "
+                         "(e.g. (umask 077; python -c 'import secrets; print(secrets.token_hex(32))' > secret.txt))")
+    return check_secret(read_private_file(path, "the secret"), f"the secret in {str(Path(path))!r}")
 
 
 def commitment(secret: bytes) -> str:

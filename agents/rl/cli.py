@@ -19,13 +19,18 @@ class _Train:
                                "(acc_gym:acc_gym/CarFollowing-v0, the form subprocess workers need)")
         p_tr.add_argument("--timesteps", type=int, default=None,
                           help="training steps (default: the tuned n_timesteps, else 100000)")
-        p_tr.add_argument("--seed", type=int, default=0)
+        p_tr.add_argument("--seed", type=int, default=0,
+                          help="seed of the training environments and the model (default 0); the evaluations use "
+                               "held-out seeds from seed + 1000003")
         p_tr.add_argument("--out", required=True, help="run directory (model, checkpoints, evaluations, manifest)")
         p_tr.add_argument("--num-envs", type=int, default=None,
                           help="parallel environments (default: the tuned n_envs, else 8)")
         p_tr.add_argument("--eval-freq", type=int, default=None, help="timesteps between evaluations (default T/5)")
-        p_tr.add_argument("--eval-episodes", type=int, default=5)
-        p_tr.add_argument("--no-progress", action="store_true", help="no progress bar")
+        p_tr.add_argument("--eval-episodes", type=int, default=5,
+                          help="episodes of each evaluation (at every --eval-freq and at the end), on held-out "
+                               "seeds, scored by the 100-point score (default 5)")
+        p_tr.add_argument("--no-progress", action="store_true",
+                          help="no progress bar (it is drawn on stderr, and only when stderr is a terminal)")
         p_tr.add_argument("--residual", default=None, choices=["acc", "constant"],
                           help="learn a residual on this base controller: clip(base + scale * policy, -1, 1)")
         p_tr.add_argument("--residual-scale", type=float, default=0.3, help="scale of the residual action")

@@ -21,7 +21,6 @@ from __future__ import annotations
 import json
 import os
 import platform
-import tempfile
 import time
 from contextlib import contextmanager
 from importlib.metadata import PackageNotFoundError, version
@@ -45,10 +44,9 @@ def _save_rms(path: Path, vecnorm) -> None:
 
 
 def _save_model(model, path: Path) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".zip")
-    os.close(fd)
-    model.save(tmp)
-    os.replace(tmp, path)
+    """The model's zip written atomically, with the mode of every other output
+    (:func:`acc_gym._io.atomic_write`)."""
+    atomic_write(path, model.save)  # stable-baselines3 writes into the open binary file
 
 
 def _versions() -> dict:
@@ -156,9 +154,13 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
     manifest records the registered (plain) id."""
     if algo not in ALGOS:
         raise ValueError(f"unknown algorithm {algo!r}; use one of {list(ALGOS)}")
-    with _torch_threads(torch_threads):
+    from acc_gym._progress import progress_bar
+
+    # from the start (torch, the environments and the model take seconds to set up), on stderr, a terminal only
+    with _torch_threads(torch_threads), progress_bar(f"train {algo}: setting up", unit="steps",
+                                                     enabled=bool(progress)) as bar:
         return _train(algo, env_id, timesteps=timesteps, seed=seed, out=out, num_envs=num_envs, eval_freq=eval_freq,
-                      eval_episodes=eval_episodes, progress=progress, algo_kwargs=algo_kwargs, residual=residual,
+                      eval_episodes=eval_episodes, progress=bar, algo_kwargs=algo_kwargs, residual=residual,
                       residual_scale=residual_scale, shield=shield, residual_kwargs=residual_kwargs,
                       max_overspeed=max_overspeed, score_bonus=score_bonus, mix=mix, train_scoring=train_scoring,
                       **env_settings)
@@ -167,7 +169,8 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
 def _train(algo: str, env_id: str, timesteps, seed, out, num_envs, eval_freq, eval_episodes, progress, algo_kwargs,
            residual, residual_scale, shield, residual_kwargs, max_overspeed, score_bonus, mix, train_scoring,
            **env_settings) -> Path:
-    """:func:`train`'s body, on the torch threads it set."""
+    """:func:`train`'s body, on the torch threads it set; ``progress``: the
+    :class:`~acc_gym._progress.ProgressBar` it advances (timesteps, and what it is doing)."""
     import gymnasium as gym
     import stable_baselines3 as sb3
     from stable_baselines3.common.callbacks import BaseCallback
@@ -238,6 +241,7 @@ def _train(algo: str, env_id: str, timesteps, seed, out, num_envs, eval_freq, ev
     evaluations: list[dict] = []
 
     def run_eval(step: int, actor=None) -> dict:
+        progress.update(description=f"train {algo}: evaluating ({eval_episodes} episodes)")
         rms = venv.obs_rms
         policy = SB3Policy(model if actor is None else actor, rms.mean.copy(), rms.var.copy(), venv.clip_obs, residual=residual,
                            residual_scale=residual_scale if residual is not None else None, shield=shield,
@@ -258,6 +262,7 @@ def _train(algo: str, env_id: str, timesteps, seed, out, num_envs, eval_freq, ev
                        "max_overspeed": max_overspeed}
         _atomic_write(ck / MANIFEST_FILE, json.dumps(ck_manifest, indent=1).encode())  # loadable on its own
         _atomic_write(out / "evaluations.json", json.dumps(evaluations, indent=1).encode())
+        progress.update(description=f"train {algo}")
         return entry
 
     class EvalCallback(BaseCallback):
@@ -271,8 +276,16 @@ def _train(algo: str, env_id: str, timesteps, seed, out, num_envs, eval_freq, ev
                 self.next += eval_freq
             return True
 
+    class ProgressCallback(BaseCallback):  # the bar of acc_gym._progress (SB3's own draws on stdout)
+        def _on_training_start(self) -> None:
+            progress.update(total=int(timesteps), completed=0, description=f"train {algo}")
+
+        def _on_step(self) -> bool:
+            progress.update(completed=self.num_timesteps)
+            return True
+
     t0 = time.time()
-    model.learn(total_timesteps=int(timesteps), callback=EvalCallback(), progress_bar=progress)
+    model.learn(total_timesteps=int(timesteps), callback=[EvalCallback(), ProgressCallback()])
     wall = time.time() - t0
     done_at = int(model.num_timesteps)
     if evaluations and evaluations[-1]["timesteps"] == done_at:

@@ -30,12 +30,23 @@ def test_adapter_resets_in_the_same_step_and_keeps_the_terminal_observation():
         assert obs[i, 0] == v0[i] and obs[i, 2] == pytest.approx(4 * v0[i], rel=1e-5)  # a fresh episode
 
 
-def test_tiny_ppo_run_saves_reloads_and_is_scored_through_the_same_path(tmp_path):
+def test_tiny_ppo_run_saves_reloads_and_is_scored_through_the_same_path(tmp_path, capsys, monkeypatch):
+    import os
+    import stat
+
     import torch
 
     before = torch.get_num_threads()
+    monkeypatch.setenv("TTY_COMPATIBLE", "1")  # stderr taken for a terminal: the progress bar is drawn
     run = train("ppo", "acc_gym/NCAP-v0", timesteps=256, seed=3, out=tmp_path / "ppo", num_envs=4,
-                eval_episodes=2, algo_kwargs={"n_steps": 64, "batch_size": 64})
+                eval_episodes=2, algo_kwargs={"n_steps": 64, "batch_size": 64}, progress=True)
+    shown = capsys.readouterr()
+    assert shown.out == "" and "train ppo" in shown.err and "256/256" in shown.err  # on stderr, to the end
+    # every output with the same mode as the manifest (what atomic_write gives), model.zip too (it was 0600)
+    mode = stat.S_IMODE(os.stat(run / "manifest.json").st_mode)
+    assert mode == 0o644
+    for path in [run / "model.zip", *(run / "checkpoints").glob("*/model.zip")]:
+        assert stat.S_IMODE(os.stat(path).st_mode) == mode, path
     manifest = json.loads((run / "manifest.json").read_text())
     assert manifest["algo"] == "ppo" and manifest["timesteps"] >= 256 and manifest["seed"] == 3
     assert manifest["eval_seed"] == 3 + EVAL_SEED_OFFSET and manifest["versions"]["stable-baselines3"]
@@ -64,6 +75,23 @@ def test_tiny_off_policy_runs(tmp_path, algo):
     assert json.loads((run / "manifest.json").read_text())["hyperparams"] is None
     s = evaluate(str(run), "acc_gym/CarFollowing-v0", episodes=1, seed=2)
     assert s["episodes"] == 1 and 0.0 <= s["mean_score"] <= 100.0
+
+
+def test_train_help_explains_every_option(capsys):
+    from acc_gym.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["train", "--help"])
+    assert exc.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "--seed SEED seed of the training environments and the model (default 0)" in text
+    assert f"held-out seeds from seed + {EVAL_SEED_OFFSET}" in text
+    assert "--eval-episodes EVAL_EPISODES episodes of each evaluation" in text
+    options = [w for w in text.split() if w.startswith("--") and w != "--help"]
+    for opt in dict.fromkeys(options):  # each option is followed by its help, not straight by the next option
+        after = text.split(f" {opt} ", 1)[-1].split()
+        nxt = after[1] if after and after[0].isupper() else (after[0] if after else "")
+        assert not nxt.startswith("--"), f"{opt} has no help"
 
 
 def test_bad_references_and_runs(tmp_path):

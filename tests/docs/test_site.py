@@ -88,7 +88,9 @@ def test_every_page_of_the_nav_is_built_and_every_docs_page_is_in_the_nav(site):
     pages = nav_pages()
     assert "index.md" in pages and "api/envs.md" in pages and "controllers.md" in pages
     for page in pages:
-        html = out / ("index.html" if page == "index.md" else page[:-3] + "/index.html")
+        # a folder's index.md is the folder's page (mkdocs' directory URLs)
+        html = out / (page[:-len("index.md")] + "index.html" if page.rsplit("/", 1)[-1] == "index.md"
+                      else page[:-3] + "/index.html")
         assert html.is_file(), f"{page} was not built ({html})"
     docs = {p.relative_to(ROOT / "docs").as_posix() for p in (ROOT / "docs").rglob("*.md")}
     assert docs - set(pages) == set(), "pages outside the nav (add them to mkdocs.yml's nav)"

@@ -13,7 +13,9 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 @pytest.fixture
-def run_example(tmp_path):
+def run_example(readable_tmp):
+    tmp_path = readable_tmp  # a scratch directory a controller's own user id may read (the leaderboard's examples)
+
     def run(name: str, *args: str, check: bool = True, timeout: float = 300.0) -> subprocess.CompletedProcess:
         proc = subprocess.run([sys.executable, str(EXAMPLES / name), *args], cwd=tmp_path, capture_output=True,
                               text=True, timeout=timeout)

@@ -233,3 +233,138 @@ def first_observation_table(suite, split: str = "test") -> dict:
     for k, sc in enumerate(suite.episodes(split)):
         table.setdefault(first_observation(suite, sc), []).append(k)
     return table
+
+
+# -- round two -------------------------------------------------------------------------------------
+def _here(name: str) -> Path:
+    return Path(__file__).with_name(name)
+
+
+class Escapes(FullThrottle):
+    """Prints escape sequences, then fails with an exception text that clears the screen and
+    draws a forged ranking (no newline: the reason's first line keeps them all)."""
+
+    def __init__(self):
+        sys.stdout.write("\x1b[2J\x1b[H\x1b]0;owned\x07log line\r\n")
+        sys.stdout.flush()
+        self.calls = 0
+
+    def predict(self, obs, deterministic=True):
+        self.calls += 1
+        if self.calls == 3:
+            raise RuntimeError("\x1b[2J\x1b[H\x1b[1;1H1  cheats:Escapes  ok  100.0\x1b[5;1H\x1b[K\x9b2J\u202edone")
+        return FULL_THROTTLE, None
+
+
+class FloodsLog(FullThrottle):
+    """Writes 6 MiB to its standard output (the test caps the log at 1 MiB)."""
+
+    def __init__(self):
+        for _ in range(6):
+            sys.stdout.write("z" * (1 << 20))
+        sys.stdout.write("\nCHEAT flooded\n")
+        sys.stdout.flush()
+
+
+class Forks(FullThrottle):
+    """Forks 200 sleeping children and reports how many it got."""
+
+    def __init__(self):
+        got, kids = 0, []
+        for _ in range(200):
+            try:
+                pid = os.fork()
+            except OSError:
+                break
+            if pid == 0:
+                time.sleep(30)
+                os._exit(0)
+            kids.append(pid)
+            got += 1
+        say("forked", got)
+        for pid in kids:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+
+
+class HoldsMemory(FullThrottle):
+    """Three forked children each hold 400 MiB at once (the test caps the tree at 1 GiB)."""
+
+    def __init__(self):
+        kids = []
+        for k in range(3):
+            pid = os.fork()
+            if pid == 0:
+                block = bytearray(400 << 20)
+                for i in range(0, len(block), 4096):
+                    block[i] = 1
+                say("held", k)
+                time.sleep(3)
+                os._exit(0)
+            kids.append(pid)
+        codes = [os.waitpid(pid, 0)[1] for pid in kids]
+        say("children ended", codes)
+
+
+class Connects(FullThrottle):
+    """Connects to the test's listener on 127.0.0.1 (its port in cheats_port.txt)."""
+
+    def __init__(self):
+        import socket
+
+        port = int(_here("cheats_port.txt").read_text())
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=2).sendall(b"CHEAT here")
+            say("connected")
+        except OSError as exc:
+            say("refused", type(exc).__name__)
+
+
+class LeavesTmp(FullThrottle):
+    """Leaves a file in /tmp and one in /dev/shm for the next controller."""
+
+    def __init__(self):
+        token = _here("cheats_port.txt").read_text().strip()
+        for d in ("/tmp", "/dev/shm"):
+            try:
+                Path(d, f"acc-gym-cheat-{token}").write_text("left")
+                say("left", d)
+            except OSError as exc:
+                say("could not leave", d, exc)
+
+
+class ReadsTmp(FullThrottle):
+    """Looks for what LeavesTmp left."""
+
+    def __init__(self):
+        token = _here("cheats_port.txt").read_text().strip()
+        for d in ("/tmp", "/dev/shm"):
+            say("found" if Path(d, f"acc-gym-cheat-{token}").exists() else "nothing in", d)
+
+
+class ShutsSocket(FullThrottle):
+    """After two steps, shuts its socket down and stays alive."""
+
+    def __init__(self):
+        self.calls = 0
+
+    def predict(self, obs, deterministic=True):
+        import socket
+
+        self.calls += 1
+        if self.calls == 3:
+            s = socket.socket(fileno=os.dup(int(sys.argv[1])))
+            s.shutdown(socket.SHUT_RDWR)
+            time.sleep(60)
+        return FULL_THROTTLE, None
+
+
+class ReadsResults(FullThrottle):
+    """Tries to read an earlier private run's results (their path in cheats_target.txt)."""
+
+    def __init__(self):
+        try:
+            text = (target() / "results.json").read_text()
+            say("read", len(text))
+        except OSError as exc:
+            say("refused", type(exc).__name__)

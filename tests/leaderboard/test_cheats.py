@@ -59,7 +59,7 @@ def runs():
         t0 = time.monotonic()
         mixed = run_leaderboard(SUITES, "test", ["acc", *CHEATS], episodes=3, workers=2, step_budget=1.0,
                                 string_stability=False,
-                                budget=120, out=out)
+                                budget=300, out=out, allow_root=True)  # as root without own uids: say so
         wall = time.monotonic() - t0
         alone = run_leaderboard(SUITES, "test", ["acc"], episodes=3, workers=1, string_stability=False)
         yield {"mixed": mixed, "alone": alone, "out": out, "before": before, "wall": wall}
@@ -148,7 +148,8 @@ def test_a_controller_cannot_write_the_package_the_suites_or_the_output(runs):
     assert text.count("CHEAT refused") == 2 and "CHEAT writable" not in text
     for path, content in runs["before"].items():
         assert path.read_bytes() == content
-    assert r["manifest"]["sandbox"] == {"kind": "process", "uid_isolated": True, "why_not": None}
+    sb = r["manifest"]["sandbox"]
+    assert (sb["kind"], sb["uid_isolated"], sb["why_not"], sb["warning"]) == ("process", True, None, None)
     mode = (out / "results.json").stat().st_mode
     assert not mode & stat.S_IWOTH
 
@@ -166,7 +167,8 @@ def test_an_unusable_bwrap_is_refused_before_anything_runs(monkeypatch, tmp_path
     monkeypatch.setattr(sandbox_mod, "_BWRAP_PROBES", {})
     out = tmp_path / "board"
     with pytest.raises(RuntimeError, match="bwrap.*not usable.*No permissions to create new namespace"):
-        run_leaderboard(["ncap-v1"], "test", ["acc"], episodes=1, out=out, sandbox="bwrap", string_stability=False)
+        run_leaderboard(["ncap-v1"], "test", ["acc"], episodes=1, out=out, sandbox="bwrap", string_stability=False,
+                        allow_root=True)
     assert not out.exists()
 
 
@@ -177,7 +179,7 @@ def test_bwrap_sandbox_contains_the_cheats_too(runs):
         out = Path(tempfile.mkdtemp(prefix="acc-gym-bwrap-")) / "board"
         r = run_leaderboard(SUITES, "test", ["acc", "cheats:KillsOthers", "cheats:EditsFiles", "cheats:Introspects"],
                             string_stability=False,
-                            episodes=3, workers=2, budget=120, out=out, sandbox="bwrap")
+                            episodes=3, workers=2, budget=300, out=out, sandbox="bwrap", allow_root=True)
     assert r["manifest"]["sandbox"]["kind"] == "bwrap"
     assert episodes(r, "acc") == episodes(runs["alone"], "acc")
     text = log_text(out, r, "cheats:EditsFiles")

@@ -22,8 +22,11 @@ SECRET = "a host's private-split secret 42"
 @pytest.fixture(scope="module")
 def signed_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("signed") / "board"
+    key_file = out.parent / "key"
+    key_file.write_text(KEY)
+    key_file.chmod(0o600)  # the host's only: a key others may read is refused
     with pytest.MonkeyPatch.context() as mp:
-        mp.setenv(KEY_ENV, KEY)
+        mp.setenv(KEY_FILE_ENV, str(key_file))
         r = run_leaderboard(["ncap-v1"], "test", ["constant", "idm"], episodes=2, out=out, report=False)
     return r, out
 
@@ -58,6 +61,7 @@ def test_results_are_signed_when_the_host_sets_a_key(signed_run, monkeypatch, tm
     assert load_results(path) == forged  # without the key only the checksum can be checked
     key_file = tmp_path / "key"
     key_file.write_text(KEY + "\n")
+    key_file.chmod(0o600)
     monkeypatch.setenv(KEY_FILE_ENV, str(key_file))
     assert load_results(out) == results
     with pytest.raises(ValueError, match="fail verification"):
@@ -65,10 +69,12 @@ def test_results_are_signed_when_the_host_sets_a_key(signed_run, monkeypatch, tm
 
 
 def test_a_bad_results_key_is_refused_before_anything_runs(tmp_path, monkeypatch):
-    monkeypatch.setenv(KEY_ENV, "short")
-    with pytest.raises(ValueError, match="results key .*ACC_GYM_RESULTS_KEY.* 5 bytes"):
+    short = tmp_path / "short"
+    short.write_text("short")
+    short.chmod(0o600)
+    monkeypatch.setenv(KEY_FILE_ENV, str(short))
+    with pytest.raises(ValueError, match="results key .*ACC_GYM_RESULTS_KEY_FILE.* 5 bytes"):
         run_leaderboard(["ncap-v1"], "test", ["constant"], episodes=1, out=tmp_path / "b")
-    monkeypatch.delenv(KEY_ENV)
     monkeypatch.setenv(KEY_FILE_ENV, str(tmp_path / "nope"))
     with pytest.raises(ValueError, match=r"cannot read the results key file .*nope"):
         run_leaderboard(["ncap-v1"], "test", ["constant"], episodes=1, out=tmp_path / "b")
@@ -110,6 +116,7 @@ def test_code_digest_reads_files_without_running_them(tmp_path):
 def test_the_private_split_runs_unshipped_episodes_and_records_only_a_commitment(tmp_path, capsys):
     secret_file = tmp_path / "secret"
     secret_file.write_text(SECRET)
+    secret_file.chmod(0o600)
     out = tmp_path / "board"
     code = main(["leaderboard", "--suite", "carfollowing-v1", "--split", "private", "--secret", str(secret_file),
                  "--controllers", "constant", "--episodes", "3", "--out", str(out), "--no-report"])

@@ -22,7 +22,8 @@ def importable_helpers():
 def risk_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("lb") / "board"
     r = run_leaderboard("ncap-v1", "test", ["gm", "acc", "bad_controllers:ReturnsNaN"], episodes=1, workers=2,
-                        out=out, report=False, risk={"budget": 512}, string_stability=False, iso15622=False)
+                        out=out, report=False, risk={"budget": 512}, string_stability=False, iso15622=False,
+                        allow_root=True)
     return r, out
 
 

@@ -53,14 +53,17 @@ def test_commitment_hides_the_secret_and_binds_it():
     assert c == private.commitment(SECRET.decode() + "\n") != private.commitment(OTHER)
 
 
-def test_secrets_are_read_from_a_file_or_the_environment(tmp_path, monkeypatch):
+def test_secrets_are_read_from_a_private_file_never_the_environment(tmp_path, monkeypatch):
     f = tmp_path / "secret.txt"
     f.write_bytes(SECRET + b"\n")
+    f.chmod(0o600)
     assert private.read_secret(f) == SECRET
-    with pytest.raises(ValueError, match="needs a secret.*ACC_GYM_LEADERBOARD_SECRET"):
+    with pytest.raises(ValueError, match="needs a secret: --secret FILE"):
         private.read_secret()
     monkeypatch.setenv(private.SECRET_ENV, OTHER.decode())
-    assert private.read_secret() == OTHER
+    with pytest.raises(ValueError, match="ACC_GYM_LEADERBOARD_SECRET is set"):
+        private.read_secret(f)
+    monkeypatch.delenv(private.SECRET_ENV)
     with pytest.raises(ValueError, match=r"cannot read the secret file .*missing\.txt"):
         private.read_secret(tmp_path / "missing.txt")
     f.write_text("short\n")

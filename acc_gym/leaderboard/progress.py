@@ -1,0 +1,66 @@
+"""What ``acc-gym leaderboard`` shows while it runs: a rich progress bar on standard error.
+
+The bar counts controller x suite cells (a controller's cells are done when it ends; the
+runner hears of a controller's episodes as a whole) with the elapsed time, and its line
+says what runs now: the kernels (with a notice when a first run compiles them), then the
+controllers in flight (the runner starts them in the order given, ``workers`` at a time).
+Each controller's end is printed above the bar (its episodes, time, and the reason if it
+failed). On a terminal the bar redraws in place; elsewhere (a CI log) rich prints the lines
+without redrawing.
+"""
+
+from __future__ import annotations
+
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+
+class LeaderboardProgress:
+    """The bar for ``names`` (controllers, in the order they start) on ``suites`` suites."""
+
+    def __init__(self, names: list[str], suites: int, workers: int, console: Console | None = None):
+        self.names, self.suites, self.workers = list(names), int(suites), int(workers)
+        self.console = console or Console(stderr=True)
+        self.done: list[str] = []
+        self.running: list[str] = []
+        self.bar = Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(bar_width=30),
+                            MofNCompleteColumn(), TextColumn("controller x suite"), TimeElapsedColumn(),
+                            console=self.console, transient=True)
+        self.task = self.bar.add_task("checking the suites and controllers", total=len(self.names) * self.suites)
+
+    def __enter__(self):
+        self.bar.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.bar.stop()
+        return False
+
+    def _describe(self) -> None:
+        shown = ", ".join(self.running[:3]) + (" ..." if len(self.running) > 3 else "")
+        self.bar.update(self.task, description=f"running {shown}" if shown else "writing the results")
+
+    def phase(self, name: str, notice: str | None) -> None:
+        """A stage starts (:func:`acc_gym.leaderboard.run.run_leaderboard`'s ``phase``)."""
+        if notice:
+            self.bar.console.print(notice, soft_wrap=True)
+        if name == "kernels":
+            self.bar.update(self.task, description="compiling kernels" if notice else "loading kernels")
+        elif name == "controllers":
+            self.running = self.names[:self.workers]
+            self._describe()
+
+    def finished(self, outcome) -> None:
+        """A controller ended (``progress(outcome)``): print it, advance, name the next in flight."""
+        name = outcome.reference
+        state = "ok" if outcome.status == "ok" else f"FAILED: {outcome.reason}"
+        self.bar.console.print(f"  {name}: {len(outcome.episodes)} episodes in {outcome.wall_time_s:.1f} s, {state}",
+                               markup=False, highlight=False, soft_wrap=True)
+        self.done.append(name)
+        if name in self.running:
+            self.running.remove(name)
+        waiting = [n for n in self.names if n not in self.done and n not in self.running]
+        while waiting and len(self.running) < self.workers:
+            self.running.append(waiting.pop(0))
+        self.bar.advance(self.task, self.suites)
+        self._describe()

@@ -1,0 +1,87 @@
+"""Ring-road benchmark (acc_gym.simulation.ring, acc_gym.evaluation.waves): the field's cases
+and the simulation's speed. Seeds 1000-1009 (the tests use none of them); every seed reported.
+
+* Sugiyama: 22 naturalistic human-like drivers on 230 m, uniform start from rest, 600 s:
+  jam yes/no, onset, wave speed, speed sd (target: a jam within 300 s on >= 9 of 10 seeds,
+  the wave backward at 12-25 km/h).
+* density: the same 22 drivers on 1,500 m (target: no jam, speed sd < 0.5 m/s).
+* Stern: one follower-stopper (and, separately, one pi-saturation) among 21 human drivers on
+  260 m against 22 human drivers, the same seeds (target: speed sd down >= 50 %, no collision);
+  braking events and energy.
+* timings (CPU seconds, process time, and wall): 10 minutes of one 22-vehicle ring; 100 rings at once.
+
+    python benchmarks/ring.py --json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from acc_gym.evaluation.waves import ring_waves
+from acc_gym.simulation.ring import controlled_positions, ring_layout, simulate_ring
+
+SEEDS = tuple(range(1000, 1010))
+
+
+def _rings(length, seeds, duration, controller=None):
+    layout = ring_layout(22, controlled_positions(22, None) if controller is not None else ())
+    tr = simulate_ring(length, 22, layout=layout, seeds=list(seeds), duration=duration, controller=controller)
+    return [dict(seed=s, **w.to_dict()) for s, w in zip(seeds, ring_waves(tr))]
+
+
+def _timed(fn):
+    c, w = time.process_time(), time.perf_counter()
+    out = fn()
+    return out, time.process_time() - c, time.perf_counter() - w
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--duration", type=float, default=600.0)
+    ap.add_argument("--skip-timing", action="store_true")
+    args = ap.parse_args(argv)
+    from acc_gym_agents.controllers import FollowerStopper, PISaturation
+
+    out: dict = {"seeds": list(SEEDS), "duration_s": args.duration}
+    sug = _rings(230.0, SEEDS, args.duration)
+    out["sugiyama"] = {"rings": sug, "jams": sum(r["jam"] for r in sug),
+                       "jams_within_300s": sum(bool(r["jam"] and r["jam_onset_s"] <= 300) for r in sug)}
+    dens = _rings(1500.0, SEEDS, args.duration)
+    out["density_1500m"] = {"rings": dens, "jams": sum(r["jam"] for r in dens),
+                            "max_speed_sd": max(r["speed_sd"] for r in dens)}
+    human = _rings(260.0, SEEDS, args.duration)
+    stern = {"human": human}
+    for name, make in (("follower-stopper", FollowerStopper), ("pi-saturation", PISaturation)):
+        rings = _rings(260.0, SEEDS, args.duration, controller=make())
+        for r, h in zip(rings, human):
+            r["speed_sd_ratio"] = r["speed_sd"] / h["speed_sd"] if h["speed_sd"] > 0 else None
+        stern[name] = rings
+    out["stern_260m"] = stern
+    if not args.skip_timing:
+        _, cpu, wall = _timed(lambda: simulate_ring(230.0, 22, seeds=[2000], duration=600.0))
+        out["timing_one_ring_10min"] = {"cpu_s": cpu, "wall_s": wall, "target_s": 2.0}
+        _, cpu, wall = _timed(lambda: simulate_ring(230.0, 22, seeds=list(range(2000, 2100)), duration=600.0))
+        out["timing_100_rings_10min"] = {"cpu_s": cpu, "wall_s": wall, "target_s": 30.0}
+    if args.json:
+        print(json.dumps(out))
+    else:
+        for case in ("sugiyama", "density_1500m"):
+            print(case, "jams", out[case]["jams"], "of", len(SEEDS))
+            for r in out[case]["rings"]:
+                print(f"  seed {r['seed']}: jam {r['jam']} onset {r['jam_onset_s']} wave {r['wave_speed_kmh']} "
+                      f"sd {r['speed_sd']:.3f} mean {r['mean_speed']:.2f}")
+        for name, rings in stern.items():
+            print("stern", name, [round(r["speed_sd"], 3) for r in rings])
+        for k in ("timing_one_ring_10min", "timing_100_rings_10min"):
+            if k in out:
+                print(k, out[k])
+    return out
+
+
+if __name__ == "__main__":
+    main()
