@@ -6,7 +6,7 @@ import io
 
 from acc_gym.leaderboard import run_leaderboard
 from acc_gym.leaderboard.isolation import Job, preventable
-from acc_gym.leaderboard.results import R157_NOTE, csv_text, markdown, text_table
+from acc_gym.leaderboard.results import COLLISIONS_NOTE, R157_NOTE, _text_cells, csv_text, markdown, text_table
 
 
 def test_collisions_are_split_into_preventable_and_not():
@@ -18,7 +18,12 @@ def test_collisions_are_split_into_preventable_and_not():
     assert all("preventable" not in e for e in by["acc"]["episodes"])  # no collision, no verdict
     o = by["constant"]["summary"]["overall"]
     assert o["preventable_collisions"] == 4 and o["non_preventable_collisions"] == 0
-    assert "4 / 0" in text_table(r) and R157_NOTE in text_table(r) and R157_NOTE in markdown(r)
+    assert "4 / 0" in markdown(r) and R157_NOTE in markdown(r)
+    # the terminal: collisions and preventable ones as columns (constant: 4 and 4), the rule in its note
+    _, headers, cells, _ = _text_cells(r)
+    row = next(c for c in cells if "constant" in c)
+    assert row[headers.index("collisions")] == "4" and row[headers.index("preventable")] == "4"
+    assert " ".join(COLLISIONS_NOTE.split()) in " ".join(text_table(r).split())
     rows = {row["controller"]: row for row in csv.DictReader(io.StringIO(csv_text(r)))}
     assert rows["constant"]["preventable_collisions"] == "4" and rows["acc"]["preventable_collisions"] == "0"
 

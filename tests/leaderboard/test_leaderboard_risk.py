@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from acc_gym.leaderboard import load_results, run_leaderboard
-from acc_gym.leaderboard.results import csv_text, text_table
+from acc_gym.leaderboard.results import csv_text, markdown, text_table
 
 HERE = Path(__file__).resolve().parent
 
@@ -50,8 +50,10 @@ def test_the_estimate_is_the_in_process_estimate(risk_run):
 
 def test_tables_and_files_carry_the_estimate(risk_run):
     r, out = risk_run
-    table = text_table(r)
-    assert "P(collision) per cut-in" in table and "< " in table  # acc's upper bound
+    table, md = text_table(r), markdown(r)
+    assert "P(collision) per cut-in" in md and "< " in md  # acc's upper bound
+    # the terminal's 120 columns show the column or name it among those left to the files
+    assert "P(collision) per cut-in" in " ".join(table.split())
     rows = csv_text(r).splitlines()
     header = rows[0].split(",")
     assert {"risk_p", "risk_ci_low", "risk_ci_high", "risk_upper_bound", "risk_episodes"} <= set(header)
