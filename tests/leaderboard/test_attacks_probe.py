@@ -3,7 +3,7 @@
 A bwrap that cannot see the package (an editable install under /tmp, hidden by bwrap's own
 /tmp) made every controller fail with "No module named 'acc_gym'" while the probe, which ran
 ``python -c pass``, passed. Here a stand-in bwrap starts the interpreter without its
-site-packages (``-S``): the package does not import there, and the probe must say so.
+site-packages (``-S``, and ``-E`` for the handed-over PYTHONPATH): the package does not import there, and the probe must say so.
 """
 
 import sys
@@ -26,8 +26,9 @@ def _fake_bwrap(body: str) -> str:
 
 
 def test_the_probe_fails_where_the_package_does_not_import(monkeypatch, tmp_path):
-    # everything from the interpreter on, run without site-packages: what a sandbox that cannot see them runs
-    fake = _fake_bwrap(f"i = args.index({sys.executable!r})\nos.execv(args[i], [args[i], '-S', *args[i + 1:]])")
+    # everything from the interpreter on, run without site-packages and without the PYTHONPATH the sandbox
+    # hands over (-S -E): what a sandbox that cannot see them runs, editable install or not
+    fake = _fake_bwrap(f"i = args.index({sys.executable!r})\nos.execv(args[i], [args[i], '-S', '-E', *args[i + 1:]])")
     monkeypatch.setattr(sandbox_mod, "bwrap_available", lambda: fake)
     monkeypatch.setattr(sandbox_mod, "_BWRAP_PROBES", {})
     problem = sandbox_mod.bwrap_problem(None)
