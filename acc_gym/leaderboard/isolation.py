@@ -516,7 +516,7 @@ def trusted_start(empty: str):
 
 class _Running:
     def __init__(self, ctx, reference: str, jobs: list, step_budget: float, budget: float, traces: bool,
-                 log_path: str, uid: int | None, sandbox: str, in_flight: int, platoon: bool = False,
+                 log_path: str, uid: int | None, sandbox: str, in_flight: int, *, platoon: bool = False,
                  iso15622: bool = False, start_dir: str | None = None):
         self.reference, self.jobs = reference, jobs
         self.outcome = Outcome(reference, episodes=[], log=log_path)
@@ -614,7 +614,8 @@ def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_b
             while pending and len(running) < workers:
                 ref = pending.pop(0)
                 running.append(_Running(ctx, ref, jobs, step_budget, budget, traces, log_file(log_dir, ref),
-                                        uids.get(ref), sandbox, in_flight, platoon, iso15622, start_dir))
+                                        uids.get(ref), sandbox, in_flight, platoon=platoon, iso15622=iso15622,
+                                        start_dir=start_dir))
             wait([r.conn for r in running] + [r.process.sentinel for r in running], timeout=POLL_S)
             now = time.monotonic()
             for r in list(running):
