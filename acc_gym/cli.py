@@ -482,6 +482,9 @@ def _add_leaderboard_parser(sub) -> None:
                         "own user id; default %(default)s)")
     p.add_argument("--tmp-size", type=float, default=Limits.tmp_bytes / 2**20, metavar="MiB",
                    help="of a controller's private /tmp and /dev/shm (in RAM; default %(default)g)")
+    p.add_argument("--disk-limit", type=float, default=Limits.disk_bytes / 2**20, metavar="MiB",
+                   help="what a controller's working directory may hold; past it the controller is killed and "
+                        "fails (default %(default)g)")
     p.add_argument("--risk", action="store_true",
                    help="add each controller's collision probability per encounter, estimated by importance "
                         "sampling in the same sandbox (acc-gym risk; slower)")
@@ -500,7 +503,8 @@ def _limits(args):
     from acc_gym.leaderboard.sandbox import Limits
 
     return Limits(log_bytes=int(args.log_limit * 2**20), memory_bytes=int(args.memory * 2**30),
-                  processes=args.processes, tmp_bytes=int(args.tmp_size * 2**20))
+                  processes=args.processes, tmp_bytes=int(args.tmp_size * 2**20),
+                  disk_bytes=int(args.disk_limit * 2**20))
 
 
 def _leaderboard(args, parser) -> int:
@@ -544,6 +548,7 @@ def _leaderboard(args, parser) -> int:
             results = run_leaderboard(suites, args.split, args.controllers, out=args.out, workers=args.workers,
                                       step_budget=args.step_budget, budget=args.budget, episodes=args.episodes,
                                       report=not args.no_report, progress=bar and bar.finished, sandbox=args.sandbox,
+                                      episode_progress=bar and bar.episode,
                                       show=show, phase=bar and bar.phase,
                                       secret=secret, risk={"family": args.risk_family, "budget": args.risk_budget}
                                       if args.risk else None, string_stability=not args.no_string_stability,

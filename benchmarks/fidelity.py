@@ -66,6 +66,12 @@ within ``paper +- tolerance``. With the default sizes the band medians' interval
     python benchmarks/fidelity.py --json          # ... and one JSON object as the last line
     python benchmarks/fidelity.py --quick         # small populations (40 per kind), one calibration
     python benchmarks/fidelity.py --seed 3 --n 500 --n-naturalistic 4000
+    python benchmarks/fidelity.py --driver-model 5   # the drivers of the ids and suites that predate model 6
+
+``--driver-model`` (default the newest, 6) selects the behaviour the populations and the Table 4
+presets drive with (:data:`acc_gym.drivers.mpc.DRIVER_MODELS`); model 6's perception draws its
+estimation errors from the report's seed. The calibration rows fit Eq. (12) to a noise-free trace
+of model 5's law (what the calibration function is for) whatever the model.
 """
 
 from __future__ import annotations
@@ -79,6 +85,7 @@ import time
 import numpy as np
 from scipy import stats
 
+from acc_gym.drivers.mpc import DRIVER_MODELS, MODEL_VERSION, human_drivers
 from acc_gym.drivers import MPCDriver, MPCDriverParams, calibrate_weights, preset, sample_drivers
 from acc_gym.drivers._mpc_kernel import ACCELERATE, BRAKE, EMERGENCY, SAIL
 from acc_gym.drivers.population import BAND_NAMES, TABLE_A3_BRAKING_START, speed_band
@@ -187,13 +194,19 @@ def approach_gaps(speeds, a_req_sail) -> np.ndarray:
     return np.maximum(APPROACH_MIN_GAP, np.minimum(own, speeds ** 2 / (2.0 * -APPROACH_A_REQ0)))
 
 
-def simulate_approach(params: MPCDriverParams, speeds: np.ndarray):
+def drivers(params: MPCDriverParams, model: int, seed) -> MPCDriver:
+    """One batch of MPC drivers over ``params`` as driver model ``model``; a perception's
+    estimation errors are drawn from ``numpy.random.default_rng(seed)``."""
+    return human_drivers(params, model, groups=[(np.random.default_rng(seed), params.size)])
+
+
+def simulate_approach(params: MPCDriverParams, speeds: np.ndarray, model: int = 5, seed=0):
     """Every driver (one batch) approaches a stopped vehicle from afar at its desired speed."""
     n = speeds.size
     gaps = approach_gaps(speeds, params.a_req_sail)
     duration = DT * math.ceil((float(np.max(gaps / speeds)) + APPROACH_TAIL) / DT)
     stopped = SpeedProfile.from_segments(0.0, [(0.0, duration)])
-    tr = simulate_column(stopped, [MPCDriver(params)], np.stack([gaps + LENGTH, np.zeros(n)], axis=1),
+    tr = simulate_column(stopped, [drivers(params, model, seed)], np.stack([gaps + LENGTH, np.zeros(n)], axis=1),
                          np.stack([np.zeros(n), speeds], axis=1), duration=duration, dt=DT, batch=n)
     scenario = (f"approach to a stopped vehicle: initial gap 1.5 v^2/(2|a_req_sail|) + {APPROACH_CRUISE:g} s * v "
                 f"within [{APPROACH_MIN_GAP:.0f} m, v^2/(2*{-APPROACH_A_REQ0} m/s^2)] = {gaps.min():.0f}-{gaps.max():.0f} m, "
@@ -202,14 +215,14 @@ def simulate_approach(params: MPCDriverParams, speeds: np.ndarray):
     return tr, scenario
 
 
-def simulate_lead_brake(params: MPCDriverParams, speeds: np.ndarray):
+def simulate_lead_brake(params: MPCDriverParams, speeds: np.ndarray, model: int = 5, seed=0):
     """Every driver follows a lead from a 1 s gap; the lead cruises, then brakes at LEAD_BRAKE to a stop."""
     n = speeds.size
     v = np.minimum(speeds, LEAD_V_CAP)
     t = np.arange(0.0, LEAD_DURATION + DT / 2, DT)
     lead_speeds = np.stack([np.interp(t, [0.0, LEAD_CRUISE, LEAD_CRUISE + vi / LEAD_BRAKE, LEAD_DURATION],
                                       [vi, vi, 0.0, 0.0]) for vi in v])
-    tr = simulate_column(SpeedProfile(t, lead_speeds), [MPCDriver(params)],
+    tr = simulate_column(SpeedProfile(t, lead_speeds), [drivers(params, model, seed)],
                          np.stack([v * 1.0 + LENGTH, np.zeros(n)], axis=1), np.stack([v, v], axis=1),
                          duration=LEAD_DURATION, dt=DT, batch=n)
     scenario = (f"lead and follower at v = min(v_desired, {LEAD_V_CAP:g}) m/s (v_desired ~ U({SPEED_RANGE[0]:g}, "
@@ -275,7 +288,7 @@ def quartiles(x):
 
 # --- the report ------------------------------------------------------------------------------
 
-def population_rows(kind: str, n: int, seed: int) -> list[dict]:
+def population_rows(kind: str, n: int, seed: int, model: int = 5) -> list[dict]:
     rng = np.random.default_rng([seed, KINDS.index(kind)])
     speeds = rng.uniform(*SPEED_RANGE, n)
     params = sample_drivers(rng, n, speeds, kind=kind)
@@ -283,7 +296,7 @@ def population_rows(kind: str, n: int, seed: int) -> list[dict]:
     who = f"N={n} sampled {kind} drivers, seed [{seed}, {KINDS.index(kind)}]"
 
     # 1(a), 2, 3, 4, 5: the approach to a stopped vehicle
-    tr, scen = simulate_approach(params, speeds)
+    tr, scen = simulate_approach(params, speeds, model, [seed, KINDS.index(kind), 1])
     scen = f"{scen}; {who}"
     entries, releases, n_em = emergency_entries(tr)
     rows.append(row("brake_release_on_emergency_entry", "approach to a stopped vehicle", kind, releases, 0, n, scen,
@@ -350,7 +363,7 @@ def population_rows(kind: str, n: int, seed: int) -> list[dict]:
                             ci=sd_ci(vals)))
 
     # 1(b): a lead braking hard to a stop
-    tr, scen = simulate_lead_brake(params, speeds)
+    tr, scen = simulate_lead_brake(params, speeds, model, [seed, KINDS.index(kind), 2])
     entries, releases, n_em = emergency_entries(tr)
     rows.append(row("brake_release_on_emergency_entry", "lead brakes at 6 m/s^2 to a stop from a 1 s gap", kind,
                     releases, 0, n, f"{scen}; {who}", 0,
@@ -358,12 +371,12 @@ def population_rows(kind: str, n: int, seed: int) -> list[dict]:
     return rows
 
 
-def preset_rows() -> list[dict]:
+def preset_rows(model: int = 5, seed: int = 0) -> list[dict]:
     """Table 4 presets approaching a stopped vehicle from 5..35 m/s (v_desired = that speed), one batch."""
     names = [name for name in PRESET_NAMES for _ in PRESET_SPEEDS]
     speeds = np.array([v for _ in PRESET_NAMES for v in PRESET_SPEEDS])
     params = MPCDriverParams.stack([preset(name, v_desired=float(v)) for name, v in zip(names, speeds)])
-    tr, scen = simulate_approach(params, speeds)
+    tr, scen = simulate_approach(params, speeds, model, [seed, 99])
     scen = scen.replace(f"v0 = v_desired ~ U({SPEED_RANGE[0]:g}, {SPEED_RANGE[1]:g}) m/s",
                         f"v0 = v_desired = {', '.join(f'{v:g}' for v in PRESET_SPEEDS)} m/s")
     scen += "; Table 4 presets (c_TG, x_min: MPCDriverParams defaults)"
@@ -470,6 +483,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--n-naturalistic", type=int, default=None,
                     help=f"naturalistic drivers, the population held against Table A3 and Fig. 7 (default "
                          f"{N_NATURALISTIC_DEFAULT}, {N_QUICK} with --quick)")
+    ap.add_argument("--driver-model", type=int, default=MODEL_VERSION, choices=sorted(DRIVER_MODELS),
+                    help=f"the driver model version the populations and presets drive as (default {MODEL_VERSION}, "
+                         "the newest; 5: the model of the ids and suites that predate model 6)")
     args = ap.parse_args(argv)
     n = args.n if args.n is not None else (N_QUICK if args.quick else N_DEFAULT)
     n_nat = args.n_naturalistic if args.n_naturalistic is not None else (N_QUICK if args.quick else N_NATURALISTIC_DEFAULT)
@@ -479,11 +495,11 @@ def main(argv=None) -> dict:
     t0 = time.perf_counter()
     rows = []
     for kind in KINDS:
-        rows += population_rows(kind, n_nat if kind == "naturalistic" else n, args.seed)
-    rows += preset_rows()
+        rows += population_rows(kind, n_nat if kind == "naturalistic" else n, args.seed, args.driver_model)
+    rows += preset_rows(args.driver_model, args.seed)
     for name in (CALIBRATED[:1] if args.quick else CALIBRATED):
         rows += calibration_rows(name)
-    report = {"seed": args.seed, "n": n, "n_naturalistic": n_nat, "quick": args.quick,
+    report = {"seed": args.seed, "driver_model": args.driver_model, "n": n, "n_naturalistic": n_nat, "quick": args.quick,
               "elapsed_s": time.perf_counter() - t0, "rows": rows}
     if args.json:
         print(json.dumps(report, allow_nan=False))

@@ -7,7 +7,9 @@ and the simulation's speed. Seeds 1000-1009 (the tests use none of them); every 
 * density: the same 22 drivers on 1,500 m (target: no jam, speed sd < 0.5 m/s).
 * Stern: one follower-stopper (and, separately, one pi-saturation) among 21 human drivers on
   260 m against 22 human drivers, the same seeds (target: speed sd down >= 50 %, no collision);
-  braking events and energy.
+  braking events and energy. The follower-stopper's commanded speed ``U`` is the all-human
+  ring's mean speed on the same seed (Stern et al.'s experimenters set ``U`` from the speed the
+  ring was driving); PI-saturation finds its own from its speed history.
 * timings (CPU seconds, process time, and wall): 10 minutes of one 22-vehicle ring; 100 rings at once.
 
     python benchmarks/ring.py --json
@@ -21,7 +23,7 @@ import time
 
 import numpy as np
 
-from acc_gym.evaluation.waves import ring_waves
+from acc_gym.evaluation.waves import WARMUP, ring_waves
 from acc_gym.simulation.ring import controlled_positions, ring_layout, simulate_ring
 
 SEEDS = tuple(range(1000, 1010))
@@ -30,7 +32,11 @@ SEEDS = tuple(range(1000, 1010))
 def _rings(length, seeds, duration, controller=None):
     layout = ring_layout(22, controlled_positions(22, None) if controller is not None else ())
     tr = simulate_ring(length, 22, layout=layout, seeds=list(seeds), duration=duration, controller=controller)
-    return [dict(seed=s, **w.to_dict()) for s, w in zip(seeds, ring_waves(tr))]
+    after = tr.t >= WARMUP
+    # how fast vehicles leave the jam (Sugiyama's: up to about 40 km/h): the 95th percentile of
+    # every vehicle's speed after the warm-up
+    return [dict(seed=s, leave_speed_kmh=3.6 * float(np.percentile(tr.v[after, b], 95)), **w.to_dict())
+            for b, (s, w) in enumerate(zip(seeds, ring_waves(tr)))]
 
 
 def _timed(fn):
@@ -56,8 +62,12 @@ def main(argv=None) -> dict:
                             "max_speed_sd": max(r["speed_sd"] for r in dens)}
     human = _rings(260.0, SEEDS, args.duration)
     stern = {"human": human}
-    for name, make in (("follower-stopper", FollowerStopper), ("pi-saturation", PISaturation)):
-        rings = _rings(260.0, SEEDS, args.duration, controller=make())
+    for name in ("follower-stopper", "pi-saturation"):
+        if name == "follower-stopper":  # U set by the experimenters: the all-human ring's mean speed there
+            rings = [_rings(260.0, [h["seed"]], args.duration, controller=FollowerStopper(v_des=h["mean_speed"]))[0]
+                     for h in human]
+        else:
+            rings = _rings(260.0, SEEDS, args.duration, controller=PISaturation())
         for r, h in zip(rings, human):
             r["speed_sd_ratio"] = r["speed_sd"] / h["speed_sd"] if h["speed_sd"] > 0 else None
         stern[name] = rings

@@ -21,6 +21,16 @@ once, each in its own process; results do not depend on N), and writes
 run's own (the ``-v1`` ids): the run's checkpoints scored on that id's own scenarios
 (:func:`twin_curve`), so the same policy is not trained twice.
 
+A ring id (``--envs acc_gym/Ring-v1``, :data:`acc_gym.envs.registration.RING_IDS`; not in the default
+set: 300,000 steps a seed) trains with its shipped settings (``agents/rl/hyperparams/ppo_ring.yml``,
+:func:`ring_curve`) and, with ``--heldout SEED``, compares each final policy with the all-human ring
+and Stern's follower-stopper on ``--heldout-episodes Ring-v1=N`` seeds from SEED (speed sd, its
+ratio to the all-human ring's, mean speed, collisions; under ``"ring"`` in the JSON; ``--table``
+prints them):
+
+    python benchmarks/rl_curves.py --algos ppo --envs acc_gym/Ring-v1 --seeds 0 1 2 --timesteps 150000 \\
+        --heldout 5000 --heldout-episodes Ring-v1=5 --runs /tmp/ring_runs --json ring_curves.json
+
 ``--plot-only`` redraws the PNG from the JSON; ``--table`` prints its runs as Markdown (every
 seed's held-out results, then the median and min-max over seeds); ``--candidates`` prints the
 search's candidates that were validated seed by seed (:func:`candidates`). Runs whose directory already holds a
@@ -39,6 +49,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_JSON = ROOT / "agents" / "rl" / "curves.json"
 DEFAULT_PNG = ROOT / "agents" / "rl" / "curves.png"
+RING_JSON = ROOT / "agents" / "rl" / "ring_curves.json"  # a ring-only run's default --json
 
 
 def run_name(algo: str, env_id: str, seed: int) -> str:
@@ -191,6 +202,142 @@ def candidates(data: dict) -> str:
     return "\n".join(rows)
 
 
+RING_FILE = ROOT / "agents" / "rl" / "hyperparams" / "ppo_ring.yml"  # the ring's shipped PPO settings
+
+
+def ring_defaults(algo: str, env_id: str) -> dict:
+    """The shipped settings of ``algo`` on a ring id (``RING_FILE``, rl-zoo3's format) in the form of
+    :func:`acc_gym_agents.rl.hyperparams.defaults`."""
+    import yaml
+
+    from acc_gym_agents.rl import hyperparams as hp
+
+    entry = (yaml.safe_load(RING_FILE.read_text()) or {}).get(env_id) if algo == "ppo" else None
+    if entry is None:
+        raise SystemExit(f"no shipped {algo} settings for {env_id} (ring ids: ppo, {RING_FILE})")
+    hp.normalize_settings(entry.get("normalize"))
+    return {"entry": dict(entry), "algo_kwargs": hp.to_sb3(entry), "num_envs": int(entry["n_envs"]),
+            "timesteps": int(entry["n_timesteps"]), "file": str(RING_FILE), "env_kwargs": hp.env_kwargs(entry)}
+
+
+def ring_episode(env_id: str, seed: int, act=None, **env_kwargs) -> dict:
+    """One episode of a ring id on ``seed``: the ego driven by ``act(obs) -> action`` (None: its
+    human-like stand-in, the all-human ring on the same seed); the ring's wave measures over the
+    control time (the env's ``info["ring"]``) and the ego's score."""
+    import gymnasium as gym
+
+    import acc_gym  # noqa: F401  (registers the ids)
+
+    env = gym.make(env_id, **env_kwargs)
+    obs, _ = env.reset(seed=int(seed), options={"ego": "human"} if act is None else None)
+    zero = env.action_space.sample() * 0.0
+    while True:
+        obs, _, term, trunc, info = env.step(zero if act is None else act(obs))
+        if term or trunc:
+            break
+    env.close()
+    ring = info["ring"]
+    return {"seed": int(seed), "length": info["length"], "speed_sd": ring["speed_sd"],
+            "mean_speed": ring["mean_speed"], "collisions": ring["collisions"], "terminated": bool(term),
+            "ego_score": info["score"]}
+
+
+def ring_compare(env_id: str, seeds, policies: dict, **env_kwargs) -> dict:
+    """Per held-out seed: the all-human ring and each of ``policies`` (name -> ``act``), each
+    policy's speed sd as a ratio to the all-human ring's on the same seed (below 1 damps)."""
+    out = {"human": [ring_episode(env_id, s, None, **env_kwargs) for s in seeds]}
+    for name, act in policies.items():
+        rows = [ring_episode(env_id, s, act, **env_kwargs) for s in seeds]
+        for row, h in zip(rows, out["human"]):
+            row["speed_sd_ratio"] = row["speed_sd"] / h["speed_sd"] if h["speed_sd"] > 0 else float("nan")
+            row["mean_speed_gain"] = row["mean_speed"] - h["mean_speed"]
+        out[name] = rows
+    return out
+
+
+def ring_curve(algo: str, env_id: str, seed: int, runs: Path, heldout: int | None, heldout_episodes: dict,
+               retrain: bool = False, timesteps: int | None = None) -> dict:
+    """Train plain ``algo`` on a ring id with its shipped settings (:func:`ring_defaults`; SB3's
+    DummyVecEnv of the id, observations and rewards normalised as the entry says, one torch
+    thread), save the model and its normalisation in the run directory, and with ``heldout``
+    compare the final deterministic policy with the all-human ring and Stern's follower-stopper
+    on ``heldout_episodes`` seeds from ``heldout`` (:func:`ring_compare`)."""
+    import numpy as np
+    import stable_baselines3 as sb3
+    import torch
+    import gymnasium as gym
+    from stable_baselines3.common.monitor import Monitor
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from acc_gym._io import atomic_write
+    from acc_gym.envs.registration import qualified_id
+    from acc_gym_agents.controllers import FollowerStopper
+    from acc_gym_agents.rl.hyperparams import normalize_settings
+
+    tuned = ring_defaults(algo, env_id)
+    out = runs / run_name(algo, env_id, seed)
+    steps = int(timesteps or tuned["timesteps"])
+    model_path, norm_path, manifest_path = out / "model.zip", out / "obs_rms.npz", out / "manifest.json"
+    torch.set_num_threads(1)
+    if retrain or not manifest_path.is_file():
+        out.mkdir(parents=True, exist_ok=True)
+        def make():  # SB3's make_vec_env asks for render_mode="rgb_array", which the ring does not draw
+            return Monitor(gym.make(qualified_id(env_id), **tuned["env_kwargs"]))
+
+        raw = DummyVecEnv([make] * tuned["num_envs"])
+        raw.seed(int(seed))  # sub-env i resets first with seed + i
+        norm = normalize_settings(tuned["entry"].get("normalize"), tuned["entry"].get("gamma", 0.99))
+        venv = VecNormalize(raw, norm_obs=True, **norm)
+        model = {"ppo": sb3.PPO}[algo]("MlpPolicy", venv, seed=int(seed), device="cpu", verbose=0,
+                                       **tuned["algo_kwargs"])
+        t0 = time.time()
+        model.learn(total_timesteps=steps)
+        wall = time.time() - t0
+        atomic_write(model_path, model.save)
+        rms = venv.obs_rms
+        atomic_write(norm_path, lambda fh: np.savez(fh, mean=rms.mean, var=rms.var, clip=venv.clip_obs,
+                                                    epsilon=venv.epsilon))
+        atomic_write(manifest_path, json.dumps({"algo": algo, "env_id": env_id, "seed": int(seed),
+                                                "timesteps": int(model.num_timesteps), "train_wall_time_s": wall,
+                                                "hyperparams": {"file": RING_FILE.name, "entry": tuned["entry"]}},
+                                               indent=1))
+        venv.close()
+    manifest = json.loads(manifest_path.read_text())
+    entry = {"algo": algo, "env_id": env_id, "seed": int(seed), "timesteps": manifest["timesteps"],
+             "train_wall_time_s": manifest["train_wall_time_s"], "hyperparams": manifest["hyperparams"]}
+    if heldout is not None:
+        model = {"ppo": sb3.PPO}[algo].load(model_path, device="cpu")
+        with np.load(norm_path) as z:
+            mean, scale, clip = z["mean"], np.sqrt(z["var"] + z["epsilon"]), float(z["clip"])
+
+        def act(obs):  # VecNormalize's observation normalisation
+            o = np.clip((obs - mean) / scale, -clip, clip).astype(np.float32)
+            return model.predict(o, deterministic=True)[0]
+
+        fs = FollowerStopper()
+        seeds = range(int(heldout), int(heldout) + _episodes(heldout_episodes, env_id))
+        entry["heldout"] = ring_compare(env_id, seeds, {algo: act, "follower-stopper": lambda o: fs.predict(o)[0]})
+    return entry
+
+
+def ring_table(data: dict) -> str:
+    """Markdown: every ring run's held-out seeds, the all-human ring, the policy and the
+    follower-stopper (speed sd [m/s], its ratio to the all-human ring's, mean speed [m/s], collisions)."""
+    rows = ["| run | held-out seed | L [m] | human: sd / mean | policy: sd (ratio) / mean / coll. | "
+            "follower-stopper: sd (ratio) / mean / coll. |", "|---|---:|---:|---|---|---|"]
+    for c in data.get("ring", []):
+        h = c.get("heldout")
+        if not h:
+            continue
+        for hu, rl, fs in zip(h["human"], h[c["algo"]], h["follower-stopper"]):
+            rows.append(f"| {c['algo']} s{c['seed']} ({c['timesteps']} steps) | {hu['seed']} | {hu['length']:.0f} | "
+                        f"{hu['speed_sd']:.2f} / {hu['mean_speed']:.2f} | {rl['speed_sd']:.2f} "
+                        f"({rl['speed_sd_ratio']:.2f}) / {rl['mean_speed']:.2f} / {rl['collisions']} | "
+                        f"{fs['speed_sd']:.2f} ({fs['speed_sd_ratio']:.2f}) / {fs['mean_speed']:.2f} / "
+                        f"{fs['collisions']} |")
+    return "\n".join(rows)
+
+
 def _curve_job(kwargs: dict) -> dict:
     return curve(**kwargs)
 
@@ -267,7 +414,8 @@ def main(argv=None) -> int:
         plot(json.loads(Path(args.json).read_text()), Path(args.png))
         return 0
     if args.table:
-        print(table(json.loads(Path(args.json).read_text())))
+        data = json.loads(Path(args.json).read_text())
+        print(table(data) + ("\n\n" + ring_table(data) if data.get("ring") else ""))
         return 0
     if args.candidates:
         print(candidates(json.loads(Path(args.json).read_text())))
@@ -280,6 +428,14 @@ def main(argv=None) -> int:
     if args.merge and Path(args.json).is_file():
         data = json.loads(Path(args.json).read_text())
     key = lambda c: (c["algo"], c["env_id"], c["seed"])  # noqa: E731
+    from acc_gym.envs.registration import RING_IDS
+
+    ring_envs = [e for e in args.envs if e in RING_IDS]  # trained and compared by ring_curve
+    args.envs = [e for e in args.envs if e not in RING_IDS]
+    if ring_envs and not args.envs and args.json == str(DEFAULT_JSON):  # a ring-only run keeps curves.json
+        args.json = str(RING_JSON)
+        if Path(args.json).is_file():
+            data = json.loads(Path(args.json).read_text()) if args.merge else {"curves": []}
     jobs = [dict(algo=algo, env_id=env_id, seed=seed, runs=Path(args.runs), eval_freq=args.eval_freq,
                  eval_episodes=args.eval_episodes, heldout=args.heldout, heldout_episodes=held,
                  retrain=args.retrain, timesteps=args.timesteps, heldout_envs=tuple(args.heldout_envs))
@@ -295,6 +451,18 @@ def main(argv=None) -> int:
               + (f"; held-out {c['heldout']}" if "heldout" in c else ""), file=sys.stderr)
         atomic_write(args.json, json.dumps(data, indent=1))  # a killed run keeps the finished curves
 
+    data.setdefault("curves", [])
+    for env_id in ring_envs:
+        for algo in args.algos:
+            if algo != "ppo":  # the ring has shipped settings for PPO only (ppo_ring.yml)
+                print(f"{algo} {env_id}: no shipped settings, skipped", file=sys.stderr)
+                continue
+            for seed in args.seeds:
+                c = ring_curve(algo, env_id, seed, Path(args.runs), args.heldout, held, args.retrain, args.timesteps)
+                data["ring"] = [d for d in data.get("ring", []) if key(d) != key(c)] + [c]
+                print(f"{algo} {env_id} seed {seed}: {c['timesteps']} steps, {c['train_wall_time_s']:.0f} s",
+                      file=sys.stderr)
+                atomic_write(args.json, json.dumps(data, indent=1))
     if args.jobs == 1:
         for job in jobs:
             record(curve(**job))
@@ -315,7 +483,8 @@ def main(argv=None) -> int:
 
     data["versions"] = _versions()
     atomic_write(args.json, json.dumps(data, indent=1))
-    plot(data, Path(args.png))
+    if data["curves"]:
+        plot(data, Path(args.png))
     return 0
 
 

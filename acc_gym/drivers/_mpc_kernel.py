@@ -44,7 +44,7 @@ EMERGENCY_MARGIN = 1.25  # emergency plans may brake 25 % harder than kinematica
 C_ALPHA = N_DRIVER_COLS + 10  # after the vehicle's 10 columns: terminal chords (alpha, then beta)
 C_BETA = C_ALPHA + K_TERM
 # Settings vector
-S_DT, S_ZOH, S_HYST, S_CREEP, S_PULL, S_FEAS, S_LEADACC, S_SLACK_LIN, S_WARM, S_COAST_FADE, S_SHORT, S_STOP, S_BRAKE_TOL = range(13)
+S_DT, S_ZOH, S_HYST, S_CREEP, S_PULL, S_FEAS, S_LEADACC, S_SLACK_LIN, S_WARM, S_COAST_FADE, S_SHORT, S_STOP, S_BRAKE_TOL, S_FOLLOW_RANGE = range(14)
 # Work matrix columns (outputs)
 W_U0, W_TARGET, W_AREQ, W_PATH, W_TH0, W_TH1, W_LOWER0, W_UPPER0, W_DR, W_MODE_PRE, W_VIOL, W_SLACK, W_ITER, W_ANEED, \
     W_FLOOR0 = range(15)
@@ -100,6 +100,16 @@ def need_decel(v, room, v_lead, a_l, stop_gap, extra):
     if stop_gap < np.inf and v > 0.0:
         a_need = min(a_need, -v * v / (2.0 * max(stop_gap + extra, 1e-3)))
     return a_need
+
+
+@numba.njit(cache=True, error_model="numpy")
+def alarmed(P, v, gap, v_lead, a_lead, out):
+    """``out[i]``: braking at its own ``a_min`` from now cannot keep driver ``i``'s ``x_min``
+    behind the vehicle ahead as it is (:func:`need_decel`; the EMERGENCY screen's test on the
+    true scene, which a driver with a perception sees at once)."""
+    for i in range(v.size):
+        out[i] = need_decel(v[i], gap[i] - P[i, X_MIN], v_lead[i], a_lead[i], np.inf, 0.0) < P[i, A_MIN]
+    return out
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -872,7 +882,7 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
     target = CRUISE
     th0, th1 = 0.0, P[i, V_DES] - v
     best = gain_c[i, 0, 0] * th1 + gain_c[i, 0, 1] * up
-    t_real = -1
+    t_real, t0, t1 = -1, 0.0, 0.0
     if has_lead:
         t_real, t0, t1 = LEAD, gap[i] - x_min - c * v, v_lead[i] - v
     if has_stop and (not has_lead or stop_gap[i] + x_min < gap[i]):
@@ -966,6 +976,24 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
     beta = P[i, C_BETA:C_BETA + K_TERM]
     viol = _fast_violation(P, S, i, v, u_unc, lower0, upper0, env_lo, env_hi, rate, gap[i], v_lead[i],
                            stop_gap[i], aseq[i])
+    # driver model 6 (MPCSettings.follow_in_range): below its desired speed, a driver whose
+    # free-driving plan would break the constraints of the moving vehicle ahead follows that
+    # vehicle (its law controls), as a human closes up to the car it is stuck behind; without
+    # it the free law, held back by those constraints, settles far behind a slow vehicle
+    # (at 2 m/s 8-13 m beyond x_min + c_TG v) and a dense column crawls
+    if (S[S_FOLLOW_RANGE] > 0.0 and target == CRUISE and t_real == LEAD and m == ACCELERATE
+            and v < P[i, V_DES] and viol > S[S_FEAS]):
+        target, th0, th1 = LEAD, t0, t1
+        W[i, W_TARGET] = target
+        W[i, W_TH0] = th0
+        W[i, W_TH1] = th1
+        for k in range(n):
+            z = gain_f[i, k, 0] * th0 + gain_f[i, k, 1] * th1 + gain_f[i, k, 2] * up
+            if a_l != 0.0:
+                z += _lead_term(gain_lead, i, k, a_l, ks, a_part, n)
+            u_unc[k] = z
+        viol = _fast_violation(P, S, i, v, u_unc, lower0, upper0, env_lo, env_hi, rate, gap[i], v_lead[i],
+                               stop_gap[i], aseq[i])
     W[i, W_VIOL] = viol
     path = -1
     if viol <= S[S_FEAS]:

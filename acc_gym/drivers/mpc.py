@@ -128,7 +128,14 @@ from acc_gym.vehicle import VehicleParams, accel_lower
 # 5 (acc-gym 0.7.0): the driver's law is unchanged; sampled populations' distance weight
 # q1n is log-uniform in [0.02, 2.8] (was [0.04, 2.8]): paper 001's Table A3 braking-start
 # medians hold in every speed band (issue 37; population.py says how the range was chosen).
-MODEL_VERSION = 5
+# 6: model 5 plus what real drivers have and paper 001's MPC leaves out, for dense traffic:
+# a reaction time (acc_gym.drivers.perception: 1.0 s, with HDM's temporal anticipation and
+# the driver's own motion known; an imminent collision seen at once) and, below its desired
+# speed, a driver whose free plan breaks the moving lead's constraints follows that lead
+# (MPCSettings.follow_in_range). Selected per use (DRIVER_MODELS); the ids and suites that
+# existed before it keep model 5.
+MODEL_VERSION = 6  # the newest driver model
+ENV_DRIVER_MODEL = 5  # the driver model of the environments' MPC drivers and so of every suite and leaderboard
 
 
 class Mode(IntEnum):
@@ -355,6 +362,11 @@ class MPCSettings:
     # within this, and the exact terminal condition the chords approximate: the driver brakes
     # at its own limits (riding a_min to x_min), not in an emergency (see _only_chords_short)
     brake_slack_tol: float = 0.05
+    # Below its desired speed, a driver whose free-driving plan would break the constraints of
+    # the moving vehicle ahead follows that vehicle (its law controls in ACCELERATE even when
+    # the free law asks for less; driver model 6). False: the free law controls whenever it
+    # asks for less, held back only by the gap and terminal constraints (driver model 5).
+    follow_in_range: bool = False
     slack_linear: float = 1e9  # exact-penalty weight of the slack (above any multiplier of a far target)
     slack_quadratic: float = 1e4  # quadratic weight of the slack
     warm_active_set: bool = True  # the kernel's active-set solver (KKT-verified) before the backend
@@ -424,7 +436,8 @@ class MPCDriver:
     """
 
     def __init__(self, params: MPCDriverParams | None = None, n: int | None = None,
-                 vehicle: VehicleParams | None = None, settings: MPCSettings | None = None):
+                 vehicle: VehicleParams | None = None, settings: MPCSettings | None = None,
+                 perception=None):
         params = params if params is not None else MPCDriverParams()
         n = params.size if n is None else int(n)
         if n < 1:
@@ -443,7 +456,7 @@ class MPCDriver:
         self._S = np.array([s.dt, 1.0 if s.discretisation == "zoh" else 0.0, s.hysteresis, s.creep_speed,
                             s.pull_away_speed, s.feas_tol, 1.0 if s.use_lead_accel else 0.0, s.slack_linear,
                             1.0 if s.warm_active_set else 0.0, s.coast_fade_speed, s.stop_short_margin,
-                            s.stop_speed, s.brake_slack_tol])
+                            s.stop_speed, s.brake_slack_tol, 1.0 if s.follow_in_range else 0.0])
         pairs = [self._condensed(float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]), float(p.r_jerk[i]))
                  for i in range(n)]
         self._qp_follow = [f for f, _ in pairs]
@@ -473,6 +486,12 @@ class MPCDriver:
         self._prepare = K.prepare_parallel if self._parallel else K.prepare
         self._SF, self._SC = K.scratch(N, self._parallel)
         self._inf = np.full(n, np.inf)
+        # what the drivers see: the scene as it is (None), or through a perception layer
+        # (acc_gym.drivers.perception.Perception: reaction time, anticipation, estimation errors)
+        if perception is not None and getattr(perception, "n", None) != n:
+            raise ValueError(f"perception serves {getattr(perception, 'n', None)} drivers, not {n}")
+        self.perception = perception
+        self._alarm = np.zeros(n, dtype=np.bool_)
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -491,6 +510,8 @@ class MPCDriver:
             self._backends: dict = {}
         self._last_used = {key: -2 for key in self._backends}
         self._step = 0
+        if getattr(self, "perception", None) is not None:
+            self.perception.reset()
 
     def set_idle(self, idle: np.ndarray) -> None:
         """Mark the rows whose output nobody reads (``idle``, booleans ``(n,)``): :meth:`act`
@@ -765,6 +786,14 @@ class MPCDriver:
         return self._act([rows[0], rows[1], rows[2], rows[3], rows[4], self._inf])
 
     def _act(self, arrays: list) -> np.ndarray:
+        if self.perception is not None:
+            # what the drivers see; one whose true scene is an emergency (braking at its a_min
+            # cannot keep x_min) sees it as it is: the reflex that the reaction time does not delay
+            true = np.stack(arrays[:5])
+            seen = self.perception.perceive(true)
+            alarm = K.alarmed(self._P, arrays[0], arrays[2], arrays[3], arrays[4], self._alarm)
+            seen[:, alarm] = true[:, alarm]
+            arrays = [seen[0], seen[1], seen[2], seen[3], seen[4], arrays[5]]
         W = self._W
         n_hard = self._prepare(self._P, self._S, *arrays, self._gain_f, self._gain_c, self._GL, self._H, self._B,
                                self._PA, W, self._I, self._SF, self._SC)
@@ -935,3 +964,46 @@ class MPCDriver:
         self._plan[i, :-1] = self._plan[i, 1:]
         self.mode[i] = K.EMERGENCY if u0 < self._P[i, K.A_MIN] else (K.BRAKE if u0 < 0 else K.ACCELERATE)
         st[K.ST_EMERGENCY] += self.mode[i] == K.EMERGENCY
+
+
+@dataclass(frozen=True)
+class DriverModel:
+    """A version of the human-like driver's behaviour: the MPC's settings and its perception
+    (``None``: it sees the scene exactly and at once)."""
+
+    version: int
+    settings: MPCSettings
+    perception: object = None  # acc_gym.drivers.perception.HumanPerception or None
+
+
+def _driver_models() -> dict:
+    from acc_gym.drivers.perception import HumanPerception
+
+    return {5: DriverModel(5, MPCSettings()),
+            6: DriverModel(6, MPCSettings(follow_in_range=True), HumanPerception())}
+
+
+DRIVER_MODELS = _driver_models()  # version -> DriverModel; the versions a user can select
+
+
+def driver_model(version) -> DriverModel:
+    """The :class:`DriverModel` of ``version`` (an int in :data:`DRIVER_MODELS`)."""
+    if isinstance(version, bool) or not isinstance(version, (int, np.integer)) or int(version) not in DRIVER_MODELS:
+        raise ValueError(f"unknown driver model {version!r}; known: {sorted(DRIVER_MODELS)}")
+    return DRIVER_MODELS[int(version)]
+
+
+def human_drivers(params: MPCDriverParams, model: int = MODEL_VERSION, *, groups=None,
+                  vehicle: VehicleParams | None = None, settings: MPCSettings | None = None) -> MPCDriver:
+    """One :class:`MPCDriver` over ``params`` behaving as driver model ``model``.
+
+    ``groups``: the perception's generators, ``[(numpy.random.Generator, rows), ...]`` over
+    consecutive rows (one per ring or episode, so that each draws its own errors); needed
+    only by a perception with estimation errors. ``settings``: overrides the model's settings except the
+    behavioural switch that defines the model (``follow_in_range``)."""
+    from acc_gym.drivers.perception import Perception
+
+    dm = driver_model(model)
+    s = dm.settings if settings is None else replace(settings, follow_in_range=dm.settings.follow_in_range)
+    perception = None if dm.perception is None else Perception(dm.perception, params.size, s.dt, groups)
+    return MPCDriver(params, vehicle=vehicle, settings=s, perception=perception)

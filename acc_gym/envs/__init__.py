@@ -5,10 +5,12 @@ Ids (:data:`~acc_gym.envs.registration.ENV_IDS`): ``acc_gym/CarFollowing-v0``,
 versions (the safety-margin features in the observation, :class:`MarginReward`) -- one
 :class:`ACCEnv` class configured by an :class:`EnvConfig`; ``gymnasium.make_vec(id,
 num_envs, vectorization_mode="vector_entry_point")`` gives the native
-:class:`ACCVectorEnv`. The classes load lazily so that registering stays cheap.
+:class:`ACCVectorEnv`. ``acc_gym/Ring-v1`` (:data:`~acc_gym.envs.registration.RING_IDS`):
+:class:`RingEnv`, one controlled vehicle damping the waves of a ring of human-like drivers.
+The classes load lazily so that registering stays cheap.
 """
 
-from acc_gym.envs.registration import ENV_IDS, register_envs
+from acc_gym.envs.registration import ENV_IDS, RING_IDS, register_envs
 
 register_envs()
 
@@ -16,7 +18,8 @@ _LAZY = {"ACCEnv": "acc_gym.envs.acc_env", "ACCVectorEnv": "acc_gym.envs.vector"
          "ScenarioSampler": "acc_gym.envs.config", "CounterScenarioSampler": "acc_gym.envs.config",
          "CriteriaReward": "acc_gym.envs.reward",
          "MarginReward": "acc_gym.envs.reward",
-         "StepIndicators": "acc_gym.envs.reward"}
+         "StepIndicators": "acc_gym.envs.reward",
+         "RingEnv": "acc_gym.envs.ring_env"}
 
 
 def __getattr__(name):
@@ -27,4 +30,4 @@ def __getattr__(name):
     raise AttributeError(f"module 'acc_gym.envs' has no attribute {name!r}")
 
 
-__all__ = ["ENV_IDS", "register_envs", *_LAZY]
+__all__ = ["ENV_IDS", "RING_IDS", "register_envs", *_LAZY]

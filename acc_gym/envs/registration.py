@@ -16,9 +16,10 @@ Everything of acc_gym that takes an id (``acc-gym evaluate --env``, ``acc-gym tr
 --env``, :func:`~acc_gym.evaluation.runner.evaluate`, :func:`make_vec_env`) takes either
 form (:func:`resolve_env_id`), and names an unknown id with the registered ones.
 
-Every id is the same :class:`~acc_gym.envs.acc_env.ACCEnv` drawing from one scenario
-family, with the native :class:`~acc_gym.envs.vector.ACCVectorEnv` as its
-``vector_entry_point``.
+Every id of :data:`ENV_IDS` is the same :class:`~acc_gym.envs.acc_env.ACCEnv` drawing from
+one scenario family, with the native :class:`~acc_gym.envs.vector.ACCVectorEnv` as its
+``vector_entry_point``; :data:`RING_IDS` are the ring road's (``acc_gym/Ring-v1``,
+:class:`~acc_gym.envs.ring_env.RingEnv`; Gymnasium's own vector envs).
 """
 
 from __future__ import annotations
@@ -43,6 +44,12 @@ ENV_IDS = {
     "acc_gym/SingleLane-v1": (("singlelane",), {"version": 1}),
     "acc_gym/NCAP-v1": (("ncap",), {"version": 1}),
     "acc_gym/StopAndGo-v1": (("stopandgo",), {"version": 1}),
+}
+
+# ids of other environment classes: id -> (entry point, settings)
+RING_IDS = {
+    # one controlled vehicle among 21 human-like drivers (model 6) on a ring of 220-270 m
+    "acc_gym/Ring-v1": ("acc_gym.envs.ring_env:RingEnv", {}),
 }
 
 
@@ -115,6 +122,9 @@ def register_envs() -> None:
                  vector_entry_point=("acc_gym.envs.registration:make_v0_vector" if v0
                                      else "acc_gym.envs.vector:ACCVectorEnv"),
                  kwargs={"default_scenarios": family, **settings})
+    for env_id, (entry_point, settings) in RING_IDS.items():
+        if env_id not in registry:
+            register(id=env_id, entry_point=entry_point, kwargs=dict(settings))
 
 
 def qualified_id(env_id: str) -> str:
@@ -122,7 +132,7 @@ def qualified_id(env_id: str) -> str:
     imports ``acc_gym`` first); other ids, and ids already qualified, as given."""
     if not isinstance(env_id, str):
         raise TypeError(f"an environment id must be a string, got {type(env_id).__name__}")
-    return f"acc_gym:{env_id}" if env_id in ENV_IDS else env_id
+    return f"acc_gym:{env_id}" if env_id in ENV_IDS or env_id in RING_IDS else env_id
 
 
 def resolve_env_id(env_id: str) -> str:

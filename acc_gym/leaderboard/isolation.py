@@ -191,10 +191,13 @@ class ControllerFailed(Exception):
 
 
 def _ended(ctl, grace: float = 5.0) -> str:
-    """Why the controller's end of the socket closed: its process died (with its exit code), or
-    it closed the connection and lives on (the controller's fault either way, never the
-    simulation's)."""
+    """Why the controller's end of the socket closed: the trusted side killed it (a limit, its
+    ``stopped`` reason), its process died (with its exit code), or it closed the connection and
+    lives on (the controller's fault either way, never the simulation's)."""
     import subprocess
+
+    if getattr(ctl, "stopped", None):
+        return ctl.stopped
 
     try:
         code = ctl.process.wait(timeout=grace)
@@ -377,6 +380,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
             run_jobs([k], True, lambda j, run: kept.setdefault("run", run))
             run = kept["run"]
             conn.send(("trace", {"position": k, "score": float(run.info["score"]), "trace": run.trace()}))
+        killed = None  # why the trusted side killed a controller process replaced since (a limit)
         sound = True  # the sandbox answered every round trip so far (its socket is in step)
         next_slot = [in_flight]  # past every slot used so far (the episodes': rows of in_flight)
         if platoon:
@@ -387,6 +391,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
 
             try:
                 if not sound:  # the controller failed in the column before: a fresh one, as it was loaded
+                    killed = ctl.stopped
                     ctl.close()
                     ctl = ControllerProcess(reference, log_path=log_path, budget=budget, uid=uid, sandbox=sandbox)
                     _hello(ctl, budget, deadline_total)  # judged at the time gap it declared first
@@ -396,6 +401,9 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
             except ControllerFailed as exc:
                 cell = failed_cell(exc.reason)
             conn.send(("iso15622", cell))
+        problem = killed or ctl.stopped or ctl.disk_problem()  # what it wrote after its last answer counts too
+        if problem is not None:
+            raise ControllerFailed(problem)
         conn.send(("done", None))
     except ControllerFailed as exc:
         conn.send(("failed", {"reason": exc.reason, "traceback": exc.tb}))
@@ -515,10 +523,13 @@ def trusted_start(empty: str):
 
 
 class _Running:
+    on_episode = None  # ``(reference, received, scheduled)`` as each accepted record arrives
+
     def __init__(self, ctx, reference: str, jobs: list, step_budget: float, budget: float, traces: bool,
                  log_path: str, uid: int | None, sandbox: str, in_flight: int, *, platoon: bool = False,
-                 iso15622: bool = False, start_dir: str | None = None):
+                 iso15622: bool = False, start_dir: str | None = None, on_episode=None):
         self.reference, self.jobs = reference, jobs
+        self.on_episode = on_episode
         self.outcome = Outcome(reference, episodes=[], log=log_path)
         self.ledger = Ledger(jobs)
         self.finished = False
@@ -540,6 +551,8 @@ class _Running:
                     problem = self.ledger.add(*payload)
                     if problem is not None:
                         self.fail(problem)
+                    elif self.on_episode is not None:  # a record the ledger accepted: one more episode
+                        self.on_episode(self.reference, len(self.ledger.received), len(self.jobs))
                 elif kind == "trace":
                     self.outcome.trace = payload[0]
                 elif kind == "string_stability":
@@ -582,12 +595,15 @@ class _Running:
 def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_budget: float, budget: float,
                  traces: bool = False, progress=None, log_dir=None, uids: dict | None = None,
                  sandbox="process", in_flight: int = IN_FLIGHT, platoon: bool = False,
-                 iso15622: bool = False, limits=None) -> dict[str, Outcome]:
+                 iso15622: bool = False, limits=None, episode_progress=None) -> dict[str, Outcome]:
     """Run ``jobs`` for every controller, ``workers`` controllers at a time (module docstring).
 
     ``uids`` maps a reference to the user id its sandbox runs as (None: the runner's);
     ``log_dir`` receives one log file per controller. Returns ``{reference: Outcome}`` in
-    the order of ``references``; ``progress(outcome)`` is called as each one finishes. With
+    the order of ``references``; ``progress(outcome)`` is called as each one finishes, and
+    ``episode_progress(reference, received, scheduled)`` as each of its episodes does (``received``
+    counts the records the runner accepted for it -- made by its simulation, checked against its
+    schedule by :class:`Ledger` -- 1, 2, ... up to ``scheduled``, before its ``progress``). With
     ``platoon``, after its episodes each controller's string stability is measured through the
     same sandbox (``Outcome.string_stability``); with ``iso15622``, then its ISO 15622 verdict on the
     ``iso15622-v1`` battery (``Outcome.iso15622``, :mod:`acc_gym.leaderboard.iso15622`).
@@ -615,7 +631,7 @@ def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_b
                 ref = pending.pop(0)
                 running.append(_Running(ctx, ref, jobs, step_budget, budget, traces, log_file(log_dir, ref),
                                         uids.get(ref), sandbox, in_flight, platoon=platoon, iso15622=iso15622,
-                                        start_dir=start_dir))
+                                        start_dir=start_dir, on_episode=episode_progress))
             wait([r.conn for r in running] + [r.process.sentinel for r in running], timeout=POLL_S)
             now = time.monotonic()
             for r in list(running):

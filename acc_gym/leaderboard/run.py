@@ -73,10 +73,10 @@ def versions() -> dict:
         except metadata.PackageNotFoundError:
             out[name.replace("-", "_")] = None
     import acc_gym
-    from acc_gym.drivers.mpc import MODEL_VERSION
+    from acc_gym.drivers.mpc import ENV_DRIVER_MODEL
 
     out["acc_gym"] = acc_gym.__version__
-    out["driver_model"] = MODEL_VERSION  # the surrounding MPC drivers' behaviour (acc_gym.drivers.mpc)
+    out["driver_model"] = ENV_DRIVER_MODEL  # the surrounding MPC drivers' behaviour (acc_gym.drivers.mpc)
     return out
 
 
@@ -243,7 +243,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                     episodes: int | None = None, report: bool = True, progress=None, sandbox: str = "process",
                     show=None, secret=None, risk: dict | None = None, string_stability: bool = True,
                     iso15622: bool = True, allow_root: bool = False, limits=None, phase=None,
-                    warm: bool = True) -> dict:
+                    warm: bool = True, episode_progress=None) -> dict:
     """Score ``controllers`` on ``suites`` (names; default all) and rank them; returns the results dict.
 
     ``out``: a directory to write results.json, results.csv, leaderboard.md, (with
@@ -251,7 +251,9 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     before anything runs, everything is written into a temporary directory beside it that
     then replaces it, and a failed write raises :class:`OutputError` carrying the results.
     ``show(results)`` is called with the ranking before anything is written (the CLI
-    prints it there). ``progress(outcome)`` is called as each controller ends.
+    prints it there). ``progress(outcome)`` is called as each controller ends, and
+    ``episode_progress(name, received, scheduled)`` as each of its episodes does
+    (:func:`~acc_gym.leaderboard.isolation.run_isolated`; the count is the trusted side's).
     ``controllers``: references resolved from the working directory (:func:`resolve_references`;
     results name each controller as given, its ``reference`` is what ran).
     ``warm``: compile the simulation's kernels first, in ``workers`` processes side by side
@@ -361,8 +363,12 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
         def told(outcome):  # the controller by the name it was given
             progress(dataclasses.replace(outcome, reference=given.get(outcome.reference, outcome.reference)))
 
+        def ticked(reference, received, scheduled):
+            episode_progress(given.get(reference, reference), received, scheduled)
+
         outcomes = run_isolated(list(resolved.values()), jobs, workers=workers, step_budget=step_budget,
                                 budget=budget, traces=traces, progress=None if progress is None else told,
+                                episode_progress=None if episode_progress is None else ticked,
                                 log_dir=logs, uids=uids, sandbox=sandbox,
                                 platoon=bool(string_stability), iso15622=bool(iso15622))
     except BaseException:

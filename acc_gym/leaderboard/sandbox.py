@@ -37,7 +37,9 @@ What the process sandbox (``sandbox="process"``, the default) guarantees:
   every text it sends (an error, a traceback) is cleaned the same way when received
   (:func:`acc_gym.leaderboard.protocol.clean_text`);
 * **resource limits** (:class:`Limits`): address space, CPU time (the total budget plus a
-  minute), open files (256), file size; and, when the runner is root, a **cgroup** for its
+  minute), open files (256), file size, the **disk** its working directory holds (measured by
+  the trusted side every :data:`DISK_POLL_S`, :func:`disk_usage`: past ``disk_bytes`` its whole
+  tree is killed and it fails, naming the limit); and, when the runner is root, a **cgroup** for its
   whole process tree (memory and number of processes, v1 or v2, where one can be made:
   :class:`acc_gym._process.Cgroups`), else, with its own user id, ``RLIMIT_NPROC``;
 * when the runner is **root**, a **jail** built before the controller's code starts
@@ -66,7 +68,9 @@ import os
 import re
 import resource
 import shutil
+import signal
 import socket
+import stat
 import subprocess
 import sys
 import tempfile
@@ -86,6 +90,9 @@ OPEN_FILES = 256
 PROCESSES = 64  # RLIMIT_NPROC, applied with an own user id only (it counts per user)
 CPU_MARGIN = 60.0  # [s] RLIMIT_CPU = total budget + this
 LOG_BYTES = 8 << 20  # [bytes] of a controller's standard output and error kept in its log
+DISK_BYTES = 1 << 30  # [bytes] its working directory may hold (numba's cache copy included)
+DISK_POLL_S = 0.2  # [s] how often the trusted side measures it
+ENTRY_BYTES = 4096  # [bytes] the least a file or directory counts for (an empty one still takes an inode)
 CONTROLLER_PATH_ENV = "ACC_GYM_CONTROLLER_PATH"
 _SERIAL = __import__("itertools").count()  # the controller's own directories, appended to its sys.path
 UID_BASE = 1_900_000_000  # own user ids: UID_BASE + 100 * (runner pid % 1e6) + controller index
@@ -351,7 +358,16 @@ def own_uid_possible(extra_paths=()) -> tuple[bool, str]:
 CACHED_PACKAGES = ("acc_gym", "acc_gym_agents")  # whose compiled numba code a controller may reuse
 
 
-def seed_numba_cache(cache_dir: str, uid: int | None) -> int:
+def _cache_files(folder: str) -> list[str]:
+    """The numba index and code files directly in ``folder`` (regular files only: a link is not followed)."""
+    try:
+        with os.scandir(folder) as it:
+            return sorted(e.name for e in it if e.name.endswith((".nbi", ".nbc")) and e.is_file(follow_symlinks=False))
+    except OSError:
+        return []
+
+
+def seed_numba_cache(cache_dir: str, uid: int | None, user_cache: str | None = None) -> int:
     """Copy the installed packages' compiled numba code into a controller's own cache.
 
     A controller cannot write the installed package, so numba would not use the package's
@@ -359,10 +375,16 @@ def seed_numba_cache(cache_dir: str, uid: int | None) -> int:
     controller touches again -- 15 s for the MPC controller, in every run. Numba reads a
     ``NUMBA_CACHE_DIR`` as ``<dir>/<source folder name>_<sha1 of its path>/``; the same
     index and code files go there (copies: the controller may rewrite its own, never the
-    package's). Returns the number of files copied."""
+    package's). Where the runner keeps its compiled code is numba's choice: the package's
+    ``__pycache__`` folders, or, when ``NUMBA_CACHE_DIR`` is set (``user_cache``, default: the
+    environment's), that directory in the layout above; both are read (never written), the
+    user's cache last, as numba prefers it, and only the package's folders of it (not what
+    else the user compiled). Returns the number of files copied."""
     import hashlib
     import importlib.util
 
+    if user_cache is None:
+        user_cache = os.environ.get("NUMBA_CACHE_DIR") or None
     copied = 0
     for name in CACHED_PACKAGES:
         try:
@@ -370,22 +392,26 @@ def seed_numba_cache(cache_dir: str, uid: int | None) -> int:
         except (ImportError, ValueError):
             spec = None
         for root in (spec.submodule_search_locations or []) if spec is not None else []:
-            for dirpath, _, filenames in os.walk(root):
-                if os.path.basename(dirpath) != "__pycache__":
-                    continue
-                source_dir = os.path.dirname(os.path.abspath(dirpath))
-                files = [f for f in filenames if f.endswith((".nbi", ".nbc"))]
-                if not files:
-                    continue
-                target = os.path.join(cache_dir, os.path.basename(source_dir) + "_" +
-                                      hashlib.sha1(source_dir.encode()).hexdigest())
-                os.makedirs(target, exist_ok=True)
-                for f in files:
-                    shutil.copy2(os.path.join(dirpath, f), os.path.join(target, f))
-                    copied += 1
-                if uid is not None:
-                    for path in [target, *(os.path.join(target, f) for f in files)]:
-                        os.chown(path, uid, uid)
+            for dirpath, dirnames, _ in os.walk(root):
+                dirnames[:] = [d for d in dirnames if d != "__pycache__"]
+                source_dir = os.path.abspath(dirpath)
+                folder = os.path.basename(source_dir) + "_" + hashlib.sha1(source_dir.encode()).hexdigest()
+                sources = [os.path.join(source_dir, "__pycache__")]
+                if user_cache:
+                    sources.append(os.path.join(user_cache, folder))
+                target = os.path.join(cache_dir, folder)
+                for source in sources:
+                    files = _cache_files(source)
+                    if not files:
+                        continue
+                    os.makedirs(target, exist_ok=True)
+                    for f in files:
+                        shutil.copyfile(os.path.join(source, f), os.path.join(target, f))
+                        shutil.copystat(os.path.join(source, f), os.path.join(target, f))
+                        copied += 1
+                    if uid is not None:
+                        for path in [target, *(os.path.join(target, f) for f in files)]:
+                            os.chown(path, uid, uid)
     return copied
 
 
@@ -487,17 +513,45 @@ def _bwrap_sizes_tmpfs(exe: str) -> bool:
 
 
 def _bwrap_flags(workdir: str, tmp_bytes: int | None = None) -> list[str]:
-    """The sandbox: the file system read-only, a private /tmp (of ``tmp_bytes`` where bwrap can
-    size it), /dev and /proc, no network, no shared IPC or PID namespace, a new session, and
+    """The sandbox: the file system read-only, a private /tmp and /dev/shm (each a tmpfs of
+    ``tmp_bytes`` where bwrap can size it; bwrap's own /dev/shm is a folder of its unsized /dev),
+    /dev and /proc, no network, no shared IPC or PID namespace, a new session, and
     death with its parent; what the controller needs from the host's /tmp (:func:`_under_tmp`)
     is bound back in, read-only."""
     exe = bwrap_available()
     size = ["--size", str(int(tmp_bytes))] if tmp_bytes and exe and _bwrap_sizes_tmpfs(exe) else []
-    flags = ["--ro-bind", "/", "/", "--dev", "/dev", "--proc", "/proc", *size, "--tmpfs", "/tmp"]
+    flags = ["--ro-bind", "/", "/", "--dev", "/dev", *size, "--tmpfs", "/dev/shm", "--proc", "/proc", *size,
+             "--tmpfs", "/tmp"]
     for p in _under_tmp(workdir):
         flags += ["--ro-bind", p, p]
     return flags + ["--bind", workdir, workdir, "--unshare-all", "--die-with-parent", "--new-session",
                     "--chdir", workdir]
+
+
+def disk_usage(root: str, stop_above: int | None = None) -> int:
+    """What the directory tree ``root`` holds [bytes]: every file's, directory's and link's
+    allocated blocks (``st_blocks``, so a sparse file counts what it takes; links are not
+    followed), each counted as at least :data:`ENTRY_BYTES` (an empty file still takes an
+    inode); counting stops once past ``stop_above``. An entry that vanishes while it is
+    counted is skipped; a directory that cannot be read is an ``OSError``."""
+    total, todo = 0, [root]
+    while todo:
+        try:
+            it = os.scandir(todo.pop())
+        except (FileNotFoundError, NotADirectoryError):
+            continue
+        with it:
+            for entry in it:
+                try:
+                    st = entry.stat(follow_symlinks=False)
+                except FileNotFoundError:
+                    continue
+                total += max(st.st_blocks * 512, ENTRY_BYTES)
+                if stat.S_ISDIR(st.st_mode):
+                    todo.append(entry.path)
+        if stop_above is not None and total > stop_above:
+            break
+    return total
 
 
 @dataclass(frozen=True)
@@ -510,7 +564,10 @@ class Limits:
     * ``processes``: processes and threads of its tree (a pids cgroup as root, else with an own
       user id ``RLIMIT_NPROC``; without either, none);
     * ``tmp_bytes``: its private ``/tmp`` and ``/dev/shm`` (tmpfs, in RAM) as root and under bwrap;
-    * ``file_bytes``: any one file it writes (``RLIMIT_FSIZE``: its working directory's files too).
+    * ``file_bytes``: any one file it writes (``RLIMIT_FSIZE``: its working directory's files too);
+    * ``disk_bytes``: everything its working directory holds (:func:`disk_usage`, measured every
+      :data:`DISK_POLL_S` by the trusted side, under either sandbox: past it the controller's
+      tree is killed and it fails with the reason, :meth:`ControllerProcess.disk_problem`).
 
     Wall time is the total budget; CPU time the budget plus :data:`CPU_MARGIN`."""
 
@@ -519,9 +576,10 @@ class Limits:
     processes: int = PROCESSES
     tmp_bytes: int = 256 << 20
     file_bytes: int = 1 << 30
+    disk_bytes: int = DISK_BYTES
 
     def __post_init__(self):
-        for name in ("log_bytes", "memory_bytes", "processes", "tmp_bytes", "file_bytes"):
+        for name in ("log_bytes", "memory_bytes", "processes", "tmp_bytes", "file_bytes", "disk_bytes"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
                 raise ValueError(f"limit {name} must be a positive integer, got {value!r}")
@@ -553,7 +611,7 @@ def containment(sandbox) -> dict:
     probe = Cgroups(f"acc-gym-probe-{os.getpid()}", sb.limits.memory_bytes, sb.limits.processes)
     probe.remove()
     if sb.kind == "bwrap":
-        network, tmp = "none (bwrap --unshare-all)", "private (bwrap tmpfs)"
+        network, tmp = "none (bwrap --unshare-all)", "private (bwrap tmpfs on /tmp and /dev/shm)"
     elif root:
         network, tmp = "none (own network namespace)", "private tmpfs on /tmp and /dev/shm"
     else:
@@ -562,7 +620,7 @@ def containment(sandbox) -> dict:
             "memory": "whole process tree (cgroup)" if probe.problem is None else probe.problem,
             "limits": {"log_bytes": sb.limits.log_bytes, "memory_bytes": sb.limits.memory_bytes,
                        "processes": sb.limits.processes, "tmp_bytes": sb.limits.tmp_bytes,
-                       "file_bytes": sb.limits.file_bytes}}
+                       "file_bytes": sb.limits.file_bytes, "disk_bytes": sb.limits.disk_bytes}}
 
 
 class LogSink(threading.Thread):
@@ -619,6 +677,8 @@ class ControllerProcess:
         sb = as_sandbox(sandbox)
         lim = sb.limits
         self.reference, self.uid = reference, uid
+        self.disk_bytes = lim.disk_bytes
+        self.stopped: str | None = None  # why the trusted side killed it (:meth:`stop`)
         self.workdir = tempfile.mkdtemp(prefix="acc-gym-controller-")
         os.makedirs(os.path.join(self.workdir, "numba"))
         if uid is not None:
@@ -664,6 +724,51 @@ class ControllerProcess:
             os.close(write_end)
             theirs.close()
         self.log.start()
+        self._watching = threading.Event()
+        self._watch = threading.Thread(target=self._watch_disk, name="acc-gym-disk", daemon=True)
+        self._watch.start()
+
+    def disk_problem(self) -> str | None:
+        """Why the controller must stop for its working directory (``None``: within the disk limit)."""
+        try:
+            used = disk_usage(self.workdir, self.disk_bytes)
+        except OSError as exc:
+            return (f"killed: its working directory could not be measured against the disk limit of "
+                    f"{self.disk_bytes / 2**20:g} MiB ({type(exc).__name__}: {exc.strerror or 'unreadable'})")
+        if used > self.disk_bytes:
+            return (f"killed: its working directory held more than the disk limit of {self.disk_bytes / 2**20:g} MiB "
+                    f"(--disk-limit)")
+        return None
+
+    def _watch_disk(self) -> None:
+        while not self._watching.wait(DISK_POLL_S):
+            problem = self.disk_problem()
+            if problem is not None:
+                self.stop(problem)
+                return
+
+    def stop(self, reason: str) -> None:
+        """Kill the controller's tree now (its process and descendants, its user id's processes,
+        its cgroup's) and end the socket, so the simulation's wait ends at once; ``stopped`` says why."""
+        from acc_gym._process import descendants
+
+        if self.stopped is None:
+            self.stopped = reason
+        pids = set(self.cgroups.pids()) if self.cgroups is not None else set()
+        if self.process.returncode is None:
+            pids |= {self.process.pid, *descendants(self.process.pid)}
+        if self.uid is not None:
+            pids |= set(processes_of(self.uid))
+        pids.discard(os.getpid())
+        for pid in pids:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
+        try:
+            self.sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
 
     def _bwrap(self, cmd: list[str], tmp_bytes: int) -> list[str]:
         exe = bwrap_available()
@@ -673,6 +778,8 @@ class ControllerProcess:
 
     def close(self) -> None:
         """End the controller and everything it started; remove its working directory."""
+        self._watching.set()
+        self._watch.join()
         try:
             protocol.send_frame(self.sock, protocol.BYE)
         except (protocol.Closed, OSError):

@@ -9,10 +9,11 @@ import json
 import numpy as np
 
 from acc_gym._cli_args import number_params
+from acc_gym.drivers.mpc import DRIVER_MODELS, MODEL_VERSION
 from acc_gym.evaluation import waves as W
 from acc_gym.simulation import ring as R
 
-JSON_KEYS = ("controller", "vehicles", "length", "drivers", "penetration", "seed", "duration", "mean_speed",
+JSON_KEYS = ("controller", "vehicles", "length", "drivers", "driver_model", "penetration", "seed", "duration", "mean_speed",
              "speed_sd", "stops", "jam", "jam_onset_s", "wave_speed_kmh", "braking_events", "energy_kwh_per_100km",
              "collisions")
 
@@ -38,6 +39,9 @@ def add_parser(sub) -> None:
                    help="the set speed in the controller's observation [m/s] (default: --v-desired)")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="a parameter of a built-in controller (repeatable), e.g. --param v_des=3 for follower-stopper")
+    p.add_argument("--driver-model", type=int, default=MODEL_VERSION, choices=sorted(DRIVER_MODELS),
+                   help=f"the human drivers' model version (default {MODEL_VERSION}: with a reaction time, they jam; "
+                        "5: paper 001's MPC as the other ids drive it, which does not jam)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--trace", default=None, metavar="PATH.csv",
                    help="write every step as CSV: t, vehicle, x, v, a, controlled (x along the ring in [0, L))")
@@ -62,12 +66,13 @@ def run(args, parser) -> int:
             parser.error(f"--penetration {args.penetration:g} of {args.vehicles} vehicles leaves the controller none")
         trace = R.simulate_ring(args.length, args.vehicles, layout=R.ring_layout(args.vehicles, positions),
                                 drivers=args.drivers, seeds=[args.seed], duration=args.duration,
-                                v_desired=args.v_desired, controller=ctl, set_speed=args.set_speed)
+                                v_desired=args.v_desired, controller=ctl, set_speed=args.set_speed,
+                                driver_model=args.driver_model)
         report = W.ring_waves(trace, warmup=args.warmup)[0]
     except (ValueError, TypeError) as exc:
         parser.error(str(exc))
     out = {"controller": args.controller, "vehicles": args.vehicles, "length": args.length,
-           "drivers": args.drivers,
+           "drivers": args.drivers, "driver_model": args.driver_model,
            "penetration": (len(positions) / args.vehicles) if ctl is not None else 0.0, "seed": args.seed,
            "duration": args.duration, **{k: v for k, v in report.to_dict().items() if k in JSON_KEYS}}
     out = {k: out[k] for k in JSON_KEYS}

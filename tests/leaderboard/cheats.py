@@ -368,3 +368,38 @@ class ReadsResults(FullThrottle):
             say("read", len(text))
         except OSError as exc:
             say("refused", type(exc).__name__)
+
+
+class FillsDisk(FullThrottle):
+    """Writes eight 1 MiB files into its working directory at every call, 256 in all at most (its
+    copies count together): each under the per-file cap the test sets (4 MiB), together past its
+    disk limit (64 MiB)."""
+
+    written = 0  # every copy's files: one process
+
+    def predict(self, obs, deterministic=True):
+        for _ in range(8):
+            if FillsDisk.written < 256:
+                Path(f"fill-{FillsDisk.written:03d}.bin").write_bytes(b"d" * (1 << 20))
+                FillsDisk.written += 1
+                if FillsDisk.written % 32 == 0:
+                    say("wrote", FillsDisk.written, "MiB")
+        return FULL_THROTTLE, None
+
+
+class FillsTmp(FullThrottle):
+    """Writes 1 MiB files into /dev/shm and /tmp until told there is no room, 64 MiB in each at most
+    (the test sizes them at 16 MiB); the last such error ends it."""
+
+    def __init__(self):
+        error = None
+        for d in ("/dev/shm", "/tmp"):
+            try:
+                for k in range(64):
+                    Path(d, f"acc-gym-fill-{os.getpid()}-{k}").write_bytes(b"t" * (1 << 20))
+                say("filled", d)
+            except OSError as exc:
+                say("no room in", d, exc.errno)
+                error = exc
+        if error is not None:
+            raise error

@@ -1,7 +1,8 @@
 """Round two's attacks on the sandbox, each a small controller (cheats.py), each gaining nothing.
 
 One leaderboard run, one controller at a time (LeavesTmp runs before ReadsTmp), with small
-limits: a 1 MiB log, a 1 GiB memory tree, 32 processes. The network, /tmp and cgroup attacks
+limits: a 1 MiB log, a 1 GiB memory tree, 32 processes, a 16 MiB /tmp, 4 MiB per file and 64 MiB
+in the working directory (FillsDisk writes past it in 1 MiB files). The network, /tmp and cgroup attacks
 need the runner to be root (the jail that builds namespaces and cgroups runs as root); they
 are skipped, with the reason, elsewhere.
 """
@@ -24,7 +25,8 @@ CGROUP_PROBLEM = "the runner is not root" if not ROOT else _probe.problem
 needs_root = pytest.mark.skipif(not ROOT, reason="namespaces and a private /tmp are built by the jail, as root")
 needs_cgroup = pytest.mark.skipif(CGROUP_PROBLEM is not None, reason=f"no cgroup here: {CGROUP_PROBLEM}")
 CHEATS = ["cheats:LeavesTmp", "cheats:ReadsTmp", "cheats:Escapes", "cheats:FloodsLog", "cheats:Forks",
-          "cheats:HoldsMemory", "cheats:Connects", "cheats:ShutsSocket"]
+          "cheats:HoldsMemory", "cheats:Connects", "cheats:ShutsSocket", "cheats:FillsDisk"] + \
+         (["cheats:FillsTmp"] if ROOT else [])  # without root its /tmp is the host's: it would fill that
 ESC = b"\x1b"
 
 
@@ -42,7 +44,8 @@ def board(tmp_path_factory):
             mp.syspath_prepend(str(HERE))
             r = run_leaderboard(["ncap-v1"], "test", ["acc", *CHEATS], episodes=2, workers=1, step_budget=1.0,
                                 budget=300, out=out, string_stability=False, iso15622=False, allow_root=True,
-                                limits=Limits(log_bytes=1 << 20, memory_bytes=1 << 30, processes=32))
+                                limits=Limits(log_bytes=1 << 20, memory_bytes=1 << 30, processes=32, tmp_bytes=16 << 20,
+                                              file_bytes=4 << 20, disk_bytes=64 << 20))
         connections = 0
         while True:
             try:
@@ -126,3 +129,21 @@ def test_the_honest_controller_ranks_first_and_the_limits_are_recorded(board):
     assert r["manifest"]["sandbox"]["limits"]["log_bytes"] == 1 << 20
     if ROOT and not own_uid_possible()[0]:
         assert "WARNING: controllers ran as root" in r["manifest"]["sandbox"]["warning"]
+
+
+def test_a_working_directory_past_the_disk_limit_fails_naming_it(board):
+    c = by_name(board["r"])["cheats:FillsDisk"]
+    assert c["status"] == "failed", c
+    assert "killed: its working directory held more than the disk limit of 64 MiB (--disk-limit)" in c["reason"]
+    assert c["rank"] is None and c["summary"] is None  # gains nothing
+    assert "CHEAT wrote" in log(board, "cheats:FillsDisk")  # in files under the 4 MiB per-file cap
+    assert board["r"]["manifest"]["sandbox"]["limits"]["disk_bytes"] == 64 << 20
+
+
+@needs_root
+def test_the_private_tmp_and_dev_shm_are_sized_and_filling_them_fails_cleanly(board):
+    c = by_name(board["r"])["cheats:FillsTmp"]
+    assert c["status"] == "failed" and "OSError: [Errno 28] No space left on device" in c["reason"], c["reason"]
+    text = log(board, "cheats:FillsTmp")
+    assert "CHEAT no room in /dev/shm 28" in text and "CHEAT no room in /tmp 28" in text and "filled" not in text
+    assert not [p for d in ("/tmp", "/dev/shm") for p in Path(d).glob("acc-gym-fill-*")]

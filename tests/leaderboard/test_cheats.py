@@ -1,7 +1,9 @@
 """Issue 16's cheats, each as a small controller (cheats.py), gain nothing on the leaderboard.
 
 One leaderboard run holds the honest linear ACC and every cheat; a second run holds the
-ACC alone. The cheats rank below the ACC or fail, the ACC's episodes are the same bits
+ACC alone (two episodes of each suite, without the columns: the cheats act in the episodes). Under
+``--sandbox bwrap`` one more run holds the ACC, the cheats bwrap must contain and the ones that fill
+its working directory, /tmp and /dev/shm (:data:`LIMITS`). The cheats rank below the ACC or fail, the ACC's episodes are the same bits
 with or without them, results.json is what the run returned, and nothing the run
 started is alive when it returns. The cheats that need the controller's own user id to
 be stopped (signals, writing files) are checked only where the runner can give it one
@@ -18,7 +20,7 @@ import pytest
 
 from acc_gym.leaderboard import load_results, run_leaderboard
 from acc_gym.leaderboard import sandbox as sandbox_mod
-from acc_gym.leaderboard.sandbox import UID_BASE, bwrap_problem, own_uid_possible, processes_of
+from acc_gym.leaderboard.sandbox import UID_BASE, Limits, bwrap_problem, own_uid_possible, processes_of
 
 HERE = Path(__file__).resolve().parent
 SUITES = ["ncap-v1", "carfollowing-v1"]
@@ -28,6 +30,8 @@ CHEATS = ["cheats:FullThrottle", "cheats:PatchesScorer", "cheats:Introspects", "
           "cheats:ForgesDone", "cheats:Lingers", "cheats:EditsFiles", "cheats:Floods"] + \
          (["cheats:KillsOthers"] if UID_ISOLATED else [])
 BWRAP_PROBLEM = bwrap_problem(UID_BASE + 99 if UID_ISOLATED else None)  # installed, and allowed its namespaces
+LIMITS = Limits(tmp_bytes=16 << 20, disk_bytes=64 << 20, file_bytes=4 << 20)  # the bwrap run's
+DISK_REASON = "killed: its working directory held more than the disk limit of 64 MiB (--disk-limit)"
 needs_uid = pytest.mark.skipif(not UID_ISOLATED, reason=f"the controller cannot get its own user id here ({WHY_NOT}); "
                                                         f"without it a controller can signal and write as the runner")
 
@@ -57,11 +61,12 @@ def runs():
         watched = [Path(acc_gym.envs.core.__file__), Path(acc_gym.__file__).parent / "suites" / "data" / "ncap-v1.json"]
         before = {p: p.read_bytes() for p in watched}
         t0 = time.monotonic()
-        mixed = run_leaderboard(SUITES, "test", ["acc", *CHEATS], episodes=3, workers=2, step_budget=1.0,
-                                string_stability=False,
+        mixed = run_leaderboard(SUITES, "test", ["acc", *CHEATS], episodes=2, workers=2, step_budget=1.0,
+                                string_stability=False, iso15622=False,
                                 budget=300, out=out, allow_root=True)  # as root without own uids: say so
         wall = time.monotonic() - t0
-        alone = run_leaderboard(SUITES, "test", ["acc"], episodes=3, workers=1, string_stability=False)
+        alone = run_leaderboard(SUITES, "test", ["acc"], episodes=2, workers=1, string_stability=False,
+                                iso15622=False)
         yield {"mixed": mixed, "alone": alone, "out": out, "before": before, "wall": wall}
         target.unlink()
 
@@ -79,9 +84,9 @@ def test_every_cheat_ranks_below_the_honest_acc_or_fails(runs):
     # the ones that collide get no points for those episodes, whatever they did to their own scorer
     for name in ("cheats:FullThrottle", "cheats:PatchesScorer", "cheats:Introspects"):
         eps = by[name]["episodes"]
-        assert len(eps) == 6 and all(e["score"] < 100.0 for e in eps)
+        assert len(eps) == 4 and all(e["score"] < 100.0 for e in eps)
         assert all(e["points"] == 0.0 for e in eps if e["metrics"]["collision"] and e["preventable"])
-        assert sum(e["metrics"]["collision"] for e in eps) >= 3
+        assert sum(e["metrics"]["collision"] for e in eps) >= 2
 
 
 def test_the_honest_controller_is_untouched_by_the_cheaters(runs):
@@ -95,7 +100,7 @@ def test_the_controller_sees_no_simulator_and_its_clocks_are_its_own(runs):
     assert by["cheats:FreezesClock"]["status"] == "failed"
     assert "step budget of 1 s" in by["cheats:FreezesClock"]["reason"]
     assert by["cheats:ForgesDone"]["status"] == "failed" and "protocol" in by["cheats:ForgesDone"]["reason"]
-    assert len(by["cheats:ForgesDone"]["episodes"]) < 6  # what it finished is kept, not ranked
+    assert len(by["cheats:ForgesDone"]["episodes"]) < 4  # what it finished is kept, not ranked
 
 
 def test_results_json_is_what_the_run_returned_and_stays_so(runs, tmp_path):
@@ -172,19 +177,50 @@ def test_an_unusable_bwrap_is_refused_before_anything_runs(monkeypatch, tmp_path
     assert not out.exists()
 
 
-@pytest.mark.skipif(BWRAP_PROBLEM is not None, reason=f"--sandbox bwrap cannot run here: {BWRAP_PROBLEM}")
-def test_bwrap_sandbox_contains_the_cheats_too(runs):
+BWRAP_CHEATS = ["cheats:KillsOthers", "cheats:EditsFiles", "cheats:Introspects"]
+
+
+@pytest.fixture(scope="module")
+def bwrap_run():
+    if BWRAP_PROBLEM is not None:
+        pytest.skip(f"--sandbox bwrap cannot run here: {BWRAP_PROBLEM}")
     with pytest.MonkeyPatch.context() as mp:
         mp.syspath_prepend(str(HERE))
         out = Path(tempfile.mkdtemp(prefix="acc-gym-bwrap-")) / "board"
-        r = run_leaderboard(SUITES, "test", ["acc", "cheats:KillsOthers", "cheats:EditsFiles", "cheats:Introspects"],
-                            string_stability=False,
-                            episodes=3, workers=2, budget=300, out=out, sandbox="bwrap", allow_root=True)
+        r = run_leaderboard(SUITES, "test", ["acc", *BWRAP_CHEATS, "cheats:FillsDisk", "cheats:FillsTmp"],
+                            string_stability=False, iso15622=False, report=False, limits=LIMITS,
+                            episodes=2, workers=2, budget=300, out=out, sandbox="bwrap", allow_root=True)
+    return r, out
+
+
+def test_bwrap_sandbox_contains_the_cheats_too(runs, bwrap_run):
+    r, out = bwrap_run
     assert r["manifest"]["sandbox"]["kind"] == "bwrap"
-    assert episodes(r, "acc") == episodes(runs["alone"], "acc")
+    assert episodes(r, "acc") == episodes(runs["alone"], "acc")  # the honest one, unaffected by the limits too
     text = log_text(out, r, "cheats:EditsFiles")
     assert text.count("CHEAT refused") == 2 and "CHEAT writable" not in text  # a read-only root, even as root
     assert "CHEAT found 0" in log_text(out, r, "cheats:Introspects")
-    assert all(c["status"] == "ok" for c in r["controllers"])
+    by = {c["name"]: c for c in r["controllers"]}
+    assert all(by[n]["status"] == "ok" for n in ("acc", *BWRAP_CHEATS)), [by[n]["reason"] for n in BWRAP_CHEATS]
     for path, content in runs["before"].items():
         assert path.read_bytes() == content
+
+
+def test_bwrap_a_working_directory_past_the_disk_limit_fails_naming_it(bwrap_run):
+    r, out = bwrap_run
+    c = next(c for c in r["controllers"] if c["name"] == "cheats:FillsDisk")
+    assert c["status"] == "failed" and DISK_REASON in c["reason"], c["reason"]
+    assert c["rank"] is None and c["summary"] is None  # gains nothing
+    assert "CHEAT wrote" in log_text(out, r, "cheats:FillsDisk")  # in files under the 4 MiB per-file cap
+    assert r["manifest"]["sandbox"]["limits"]["disk_bytes"] == 64 << 20
+
+
+def test_bwrap_tmp_and_dev_shm_are_sized_and_filling_them_fails_cleanly(bwrap_run):
+    r, out = bwrap_run
+    c = next(c for c in r["controllers"] if c["name"] == "cheats:FillsTmp")
+    assert c["status"] == "failed" and "OSError: [Errno 28] No space left on device" in c["reason"], c["reason"]
+    text = log_text(out, r, "cheats:FillsTmp")
+    assert "CHEAT no room in /dev/shm 28" in text and "CHEAT no room in /tmp 28" in text, text
+    assert "CHEAT filled" not in text
+    assert not list(Path("/tmp").glob("acc-gym-fill-*")) and not list(Path("/dev/shm").glob("acc-gym-fill-*"))
+    assert r["manifest"]["sandbox"]["tmp"] == "private (bwrap tmpfs on /tmp and /dev/shm)"
