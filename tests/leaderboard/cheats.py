@@ -24,8 +24,10 @@ def say(*words) -> None:
     print("CHEAT", *words, flush=True)
 
 
-def target() -> Path:
-    return Path((Path(__file__).with_name("cheats_target.txt")).read_text().strip())
+def target(name: str = "cheats_target.txt") -> Path:
+    """The path a test left in ``name`` beside this file (each test file its own name: test files
+    run at once in different pytest-xdist workers)."""
+    return Path((Path(__file__).with_name(name)).read_text().strip())
 
 
 class FullThrottle:
@@ -360,11 +362,11 @@ class ShutsSocket(FullThrottle):
 
 
 class ReadsResults(FullThrottle):
-    """Tries to read an earlier private run's results (their path in cheats_target.txt)."""
+    """Tries to read an earlier private run's results (their path in cheats_private_target.txt)."""
 
     def __init__(self):
         try:
-            text = (target() / "results.json").read_text()
+            text = (target("cheats_private_target.txt") / "results.json").read_text()
             say("read", len(text))
         except OSError as exc:
             say("refused", type(exc).__name__)

@@ -125,13 +125,13 @@ def test_a_stranger_on_the_private_split_needs_its_own_user_id(tmp_path, monkeyp
 @pytest.mark.skipif(not sandbox_mod.own_uid_possible()[0], reason=f"no own user id here: "
                                                                   f"{sandbox_mod.own_uid_possible()[1]}")
 def test_a_controller_reading_an_earlier_private_run_gains_nothing(private_run, tmp_path, monkeypatch):
-    (HERE / "cheats_target.txt").write_text(str(private_run))
+    (HERE / "cheats_private_target.txt").write_text(str(private_run))
     try:
         monkeypatch.syspath_prepend(str(HERE))
         r = run_leaderboard(["ncap-v1"], "private", ["cheats:ReadsResults"], episodes=1, secret=SECRET,
                             out=tmp_path / "b", string_stability=False, iso15622=False)
     finally:
-        (HERE / "cheats_target.txt").unlink()
+        (HERE / "cheats_private_target.txt").unlink()
     text = (tmp_path / "b" / r["controllers"][0]["log"]).read_text()
     # refused either by the results' modes (0600 in 0700) or, as root, because the jail's private /tmp
     # does not hold the host's files at all
