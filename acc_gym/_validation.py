@@ -78,10 +78,3 @@ def from_mapping(cls, d, what: str):
         raise ValueError(f"unknown {what} setting(s) {sorted(unknown)}; known: {known}")
     return cls(**d)
 
-
-def check_shape(name: str, value, shape: tuple) -> np.ndarray:
-    """Return ``value`` as a float array, raising ``ValueError`` if its shape differs."""
-    arr = np.asarray(value, dtype=float)
-    if arr.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
-    return arr

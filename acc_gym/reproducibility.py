@@ -1,7 +1,7 @@
-"""What is bit-identical across machines, what is reproducible to a tolerance, and the
+"""What is exactly the same on every machine, what is reproducible to a tolerance, and the
 tool that measures the tolerance.
 
-* **Bit-identical on every machine:** the suites' definitions and hashes
+* **Exactly the same on every machine:** the suites' definitions and hashes
   (:mod:`acc_gym.suites`): a suite episode's parameters are rounded to 6 decimals before
   the episode is built from them (:func:`acc_gym.suites.suite.canonical_params`), so the
   last-bit differences of ``exp`` / ``log`` between CPU instruction sets (numpy's AVX-512
@@ -22,10 +22,10 @@ tool that measures the tolerance.
   emulation moves inputs, not each step's arithmetic, so it bounds what the inputs do,
   not every difference a CPU can make.
 
-Reaching that needed one scoring fix: a scripted lead that cruises exactly at the ego's
-set speed was classified "faster than the set speed" or not by its last bit, which
-moved a linear-ACC car-following/120 score by 34 points; the comparison now has a
-1e-6 m/s tolerance (:data:`acc_gym.evaluation.scoring.SPEED_TOL`).
+The score's one comparison that a last bit could flip has a tolerance: a scripted lead
+that cruises exactly at the ego's set speed would be "faster than the set speed" or not
+by its last bit (a linear-ACC car-following/120 score moved by 34 points on it), so the
+comparison allows 1e-6 m/s (:data:`acc_gym.evaluation.scoring.SPEED_TOL`).
 """
 
 from __future__ import annotations

@@ -7,9 +7,12 @@
 Every built-in controller is measured as ``acc-gym string-stability NAME`` measures it
 (8 copies at 20 m/s, the full 25-frequency grid, the Gunter-like disturbance), ``cacc``
 and ``mp-cacc`` also with V2V, and the human-like MPC drivers (``human``, each population)
-alone and with the linear ACC in a quarter of the positions. Printed per row: the largest
-gain and the verdict, the frequencies where the gain exceeds 1, the disturbance's drop at the
-lead and at the last vehicle, and the wall time of the whole measurement (median of
+alone and with the linear ACC in a quarter of the positions, each as driver model 5 (the
+environments' drivers, ``PlatoonConfig``'s default) and as driver model 6 (a 1.0 s reaction
+time with anticipation, a reflex and a following rule; ``acc_gym.drivers.mpc.DRIVER_MODELS``).
+Printed per row: the largest gain and the verdict, the frequencies where the gain exceeds 1,
+the disturbance's drop at the lead and at the last vehicle, and the wall time of the whole
+measurement (median of
 ``--repeats`` runs; the sweep and the disturbance are one batched simulation). ``--plot``
 draws the linear ACC at 1.5 s and at 0.6 s beside CACC at 0.6 s.
 """
@@ -37,10 +40,16 @@ ROWS = [  # (label, controller, config settings)
     ("constant", "constant", {}),
     ("ppo-acc", "ppo-acc", {}),
     ("ppo", "ppo", {}),
-    ("human (typical)", "human", {"drivers": "typical"}),
-    ("human (atypical)", "human", {"drivers": "atypical"}),
-    ("human (naturalistic)", "human", {"drivers": "naturalistic"}),
-    ("acc in 1 of 4 positions, naturalistic humans", "acc", {"penetration": 0.25, "drivers": "naturalistic"}),
+    ("human (typical), driver model 5", "human", {"drivers": "typical"}),
+    ("human (atypical), driver model 5", "human", {"drivers": "atypical"}),
+    ("human (naturalistic), driver model 5", "human", {"drivers": "naturalistic"}),
+    ("acc in 1 of 4 positions, naturalistic humans, driver model 5", "acc",
+     {"penetration": 0.25, "drivers": "naturalistic"}),
+    ("human (typical), driver model 6", "human", {"drivers": "typical", "driver_model": 6}),
+    ("human (atypical), driver model 6", "human", {"drivers": "atypical", "driver_model": 6}),
+    ("human (naturalistic), driver model 6", "human", {"drivers": "naturalistic", "driver_model": 6}),
+    ("acc in 1 of 4 positions, naturalistic humans, driver model 6", "acc",
+     {"penetration": 0.25, "drivers": "naturalistic", "driver_model": 6}),
 ]
 
 
@@ -56,6 +65,7 @@ def measure(label: str, controller: str, settings: dict, repeats: int) -> dict:
     d = report.disturbance
     return {"row": label, "max_gain": report.max_gain, "string_stable": report.string_stable,
             "unstable_bands_hz": report.unstable_bands, "time_gap": report.time_gap,
+            "driver_model": report.config.driver_model if len(report.positions) < report.config.vehicles else None,
             "measured_pairs": int(report.steady.sum()), "pairs": int(report.steady.size),
             "lead_drop": d.lead_drop if d else None, "last_drop": float(d.drops[-1]) if d else None,
             "errors": [str(e) for e in report.errors], "wall_s": statistics.median(times), "report": report}

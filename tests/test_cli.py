@@ -161,7 +161,7 @@ def test_score_reports_a_colliding_drive_as_the_environment_does(tmp_path, capsy
         assert scored[key] == info["report"][key], key
     assert scored["metrics"] == info["report"]["metrics"]
     # the text: score prints what demo prints for the same report
-    from acc_gym.cli import _print_report
+    from acc_gym.commands.demo import _print_report
 
     assert main(["score", str(path), "--set-speed", repr(sc.set_speed), "--time-gap", repr(sc.time_gap)]) == 0
     text = capsys.readouterr().out
@@ -190,6 +190,30 @@ def test_a_collision_has_a_time_to_collision_of_0_and_an_undefined_u_reads_n_a(t
     assert main(["score", str(path), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["u"] is None and out["metrics"]["min_ttc"] == 0.0
+
+
+# ---------------------------------------------------------------- the table of subcommands
+def test_the_command_table_lists_every_subcommand_and_each_module_adds_the_one_it_names(capsys):
+    """acc-gym --help lists the table's subcommands in its order, then the entry points' (train);
+    each table module's add_parser adds exactly the subcommand the table names it by."""
+    import argparse
+    import importlib
+    import re
+
+    from acc_gym.cli import COMMANDS
+    from acc_gym.controllers import cli_plugins
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    assert exc.value.code == 0
+    listed = re.search(r"\{([^}]*)\}", capsys.readouterr().out).group(1).split(",")
+    assert listed == [name for name, _ in COMMANDS] + list(cli_plugins()) and "train" in listed
+    assert len(set(listed)) == len(listed)
+    for name, module in COMMANDS:
+        sub = argparse.ArgumentParser().add_subparsers()
+        importlib.import_module(module).add_parser(sub)
+        assert list(sub.choices) == [name], module
+
 
 
 # ---------------------------------------------------------------- controllers: what each one is

@@ -18,8 +18,8 @@ chunking or the order chunks run in -- which is what makes results reproducible 
 resumable.
 
 **Episode seed.** Each episode is reset with ``seed_for(i, R)``, the first draw
-``integers(0, 2**31 - 1)`` of ``default_rng([i, R])`` (the issue's "seeds per scenario
-come from ``default_rng([scenario_id, root_seed])``"); it is recorded in every result row.
+``integers(0, 2**31 - 1)`` of ``default_rng([i, R])`` (seeds per scenario come from
+``default_rng([scenario_id, root_seed])``); it is recorded in every result row.
 
 **Length.** ``hours`` of traffic are the scenarios ``0 .. n-1`` with ``n`` the smallest
 count whose durations sum to at least ``hours * 3600`` s (the suite's ``stream`` rule).

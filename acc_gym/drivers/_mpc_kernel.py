@@ -368,12 +368,6 @@ def _kind(c, n):
 
 
 @numba.njit(cache=True)
-def _tp(k, j, dt, zoh):
-    """Position response at state k+1 to a unit input at j <= k."""
-    return dt * dt * ((k - j) + (0.5 if zoh else 0.0))
-
-
-@numba.njit(cache=True)
 def _prefix(x, p0, p1):
     """Running sums ``p0[k] = sum_{j<=k} x_j`` and ``p1[k] = sum_{j<=k} j x_j``."""
     a0 = 0.0
@@ -931,7 +925,7 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         # of x_min (MPCSettings.brake_slack_tol plus the jerk-bounded release before the
         # standstill, as accepted in MPCDriver._only_chords_short), it brakes at them and
         # stops a few centimetres inside x_min rather than jolting at the vehicle's limit
-        # (Table 4's #57 from 35 m/s, driver model 3: -8.6 m/s^2 at 0.29 m/s); else the
+        # (jolting, Table 4's #57 from 35 m/s braked at -8.6 m/s^2 at 0.29 m/s); else the
         # exact stop at whatever the vehicle can do.
         # A final stop still ramping (the throttle easing off, or the brake being released
         # towards its final braking at the jerk bound) is checked along that ramp, not at this

@@ -322,10 +322,9 @@ class GM(_Model):
 
     The distance is head to head, as paper 003 states it ("inversely proportional to the
     distance between the heads of the two vehicles"): the bumper gap plus
-    ``length_ahead``. (Until 0.3.0 it was the bumper gap, which made the sensitivity
-    ``c / gap`` blow up at short gaps: full-brake steps of 40 m/s^3 at 60 and 90 km/h;
-    head to head, its largest jerk there is about 2 m/s^3 and only the final emergency stop
-    at 120 km/h still saturates.)"""
+    ``length_ahead``. (With the bumper gap the sensitivity ``c / gap`` would blow up at short
+    gaps: full-brake steps of 40 m/s^3 at 60 and 90 km/h; head to head, its largest jerk
+    there is about 2 m/s^3 and only the final emergency stop at 120 km/h saturates.)"""
 
     params_type = GMParams
     name = "gm"

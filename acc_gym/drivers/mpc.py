@@ -49,7 +49,7 @@ Modes (paper Figure 9)
       the target is really pulling away (``dR > pull_away_speed``), or, from SAIL, above
       ``creep_speed``. The literal rule would re-accelerate while still closing on a
       stopped vehicle at creep speed, because ``a_req -> 0`` as the speed does.
-    * Mode semantics (issue 23): ``a_sail`` is the coasting deceleration (pedals released:
+    * Mode semantics: ``a_sail`` is the coasting deceleration (pedals released:
       engine drag and resistance; ``MPCSettings.coast_fade_speed`` can fade it out at low
       speed, off by default). ACCELERATE never decelerates harder than coasting; SAIL is
       coasting; anything harder is BRAKE (the label follows the applied first input, not
@@ -106,34 +106,18 @@ from acc_gym.drivers.qp import K_TERM, Horizon, condensed_qp, make_backend, term
 from acc_gym.vehicle import VehicleParams, accel_lower
 
 
-# The behaviour's version: it goes up whenever the same parameters give other trajectories.
-# 2 (acc-gym 0.4.0): the modes mean their names (coasting is SAIL, any harder deceleration is
-# BRAKE, ACCELERATE only with the brake released), queues are approached under the target's
-# law and every stop ends braking (issue 23); EMERGENCY never releases the brake on entry.
-# 3 (acc-gym 0.5.0): an emergency's first input is at least the deceleration that stops clear
-# (a_need); a decelerating plan short only on the conservative terminal chords brakes at its
-# own limits instead of escalating; rolling on at creep speed towards a stopped target does
-# not slow down; a decelerating mode's input above coasting is labelled ACCELERATE; sampled
-# drivers' distance weight q1 = q1n (20/v)^4, q1n log-uniform in [0.04, 2.8] (population.py).
-# 4 (acc-gym 0.6.0): a braking driver is screened for EMERGENCY, and ends its stop, with the
-# tolerance its accepted braking plans have (brake_slack_tol plus the jerk-bounded release):
-# carrying out such a plan that ends a few centimetres inside x_min is neither an emergency
-# nor a jolt at the vehicle's braking limit (Table 4's #57 from 35 m/s braked at -8.6 m/s^2
-# for one step at 0.29 m/s); it eases off at its jerk bound. The final stop at walking pace
-# brakes at most at a_min, and one still easing off the throttle follows its jerk-bounded
-# ramp when that stops short of x_min (it jumped to the exact stop). The QPs are condensed
-# with the weights divided by max(1, q1) (same minimiser), so the slack's exact penalty
-# stays above the multipliers of a slow driver's speed-scaled q1 (which took slack 300 m
-# before a stopped car and braked at the vehicle's limit). Populations are unchanged.
-# 5 (acc-gym 0.7.0): the driver's law is unchanged; sampled populations' distance weight
-# q1n is log-uniform in [0.02, 2.8] (was [0.04, 2.8]): paper 001's Table A3 braking-start
-# medians hold in every speed band (issue 37; population.py says how the range was chosen).
+# The behaviour's version: it goes up whenever the same parameters give other trajectories
+# (CHANGELOG.md says what each version changed). DRIVER_MODELS holds the versions a user can
+# select:
+# 5: the law this module describes, with MPCSettings()'s defaults; sampled populations' distance
+#    weight q1 = q1n (20/v)^4, q1n log-uniform in [0.02, 2.8] (population.py says how the range
+#    was chosen).
 # 6: model 5 plus what real drivers have and paper 001's MPC leaves out, for dense traffic:
-# a reaction time (acc_gym.drivers.perception: 1.0 s, with HDM's temporal anticipation and
-# the driver's own motion known; an imminent collision seen at once) and, below its desired
-# speed, a driver whose free plan breaks the moving lead's constraints follows that lead
-# (MPCSettings.follow_in_range). Selected per use (DRIVER_MODELS); the ids and suites that
-# existed before it keep model 5.
+#    a reaction time (acc_gym.drivers.perception: 1.0 s, with HDM's temporal anticipation and
+#    the driver's own motion known; an imminent collision seen at once) and, below its desired
+#    speed, a driver whose free plan breaks the moving lead's constraints follows that lead
+#    (MPCSettings.follow_in_range; docs/design/driver-model-6.md). The env ids, suites and
+#    leaderboards drive model 5 (ENV_DRIVER_MODEL); the ring drives model 6.
 MODEL_VERSION = 6  # the newest driver model
 ENV_DRIVER_MODEL = 5  # the driver model of the environments' MPC drivers and so of every suite and leaderboard
 
@@ -403,7 +387,7 @@ class MPCSettings:
         (per driver): ``brake_slack_tol`` plus the jerk-bounded release before the standstill,
         ``b^3 / (24 jerk_max^2)`` with ``b = -a_min``. A braking plan within it is accepted
         (``MPCDriver._only_chords_short``), a braking driver is screened for EMERGENCY with
-        it, and its final stop uses it (driver model 4): at its own limits such a stop ends
+        it, and its final stop uses it: at its own limits such a stop ends
         a few centimetres inside ``x_min`` rather than with a jolt at the vehicle's limit."""
         b, jerk = -np.asarray(params.a_min, float), np.asarray(params.jerk_max, float)
         return self.brake_slack_tol + b ** 3 / (24.0 * jerk * jerk)
@@ -520,7 +504,7 @@ class MPCDriver:
         them (which clears the mark) or this is called again. The other rows' numbers are the same either way (rows do not
         interact). :class:`~acc_gym.drivers.slots.SlotDrivers` marks its rows without an MPC
         driver (absent vehicles, profiles, baseline models): before, it fed them a made-up
-        cruise, the kernel planned it and the result was thrown away (issue 35)."""
+        cruise, the kernel planned it and the result was thrown away."""
         idle = np.asarray(idle)
         if idle.shape != (self.n,) or idle.dtype != bool:
             raise ValueError(f"idle must be booleans of shape ({self.n},), got {idle.dtype} {idle.shape}")
@@ -534,7 +518,7 @@ class MPCDriver:
         and their solver workspaces dropped, so a batch of drivers can host a new human in
         one slot while the others drive on -- what a vector environment's autoreset needs.
 
-        Decided (issue 35): the cruise QP is installed here, the follow QP at the driver's
+        Decided: the cruise QP is installed here, the follow QP at the driver's
         first step with a real target (a vehicle ahead or a stop position; the kernel reads
         the follow law only then). Most surrounding drivers of a single-lane scene never have
         one (the front vehicle of every scene), so a reset condenses about half as much. The
@@ -586,7 +570,7 @@ class MPCDriver:
         """The rest of :meth:`set_params` for one driver ``i`` whose parameters are already in
         :attr:`params`: the same rows written with Python floats instead of small arrays
         (the terminal chords by :func:`~acc_gym.drivers.qp.terminal_chords`'s operations in
-        its order, so the same bits; ``tests/drivers/test_fast_paths.py`` checks it)."""
+        its order, so the same values exactly; ``tests/drivers/test_fast_paths.py`` checks it)."""
         p = self.params
         limit_col = p.v_desired if p.v_max is None else p.v_max  # speed_limit, without its array copy
         row = [float((limit_col if c == "v_max" else getattr(p, c))[i]) for c in _PARAM_COLUMNS]
@@ -616,9 +600,9 @@ class MPCDriver:
         Both are condensed with the weights divided by ``max(1, q1)`` (the same minimiser and
         the same laws): the slack's exact penalty (``MPCSettings.slack_linear``) must stay above
         every constraint multiplier, which grow with ``q1`` times the distance error. Unscaled,
-        a slow driver's speed-scaled ``q1`` (5,200 at 3 m/s) made the slack cheaper than the
-        speed bound 300 m before a stopped vehicle: its QP took slack and the driver braked at
-        the vehicle's limit in EMERGENCY (driver model 3)."""
+        a slow driver's speed-scaled ``q1`` (5,200 at 3 m/s) makes the slack cheaper than the
+        speed bound 300 m before a stopped vehicle: its QP takes slack and the driver brakes at
+        the vehicle's limit in EMERGENCY."""
         return self._follow_qp(q1, q2, r1, c_tg, r_jerk), self._cruise_qp(q1, q2, r1, c_tg, r_jerk)
 
     def _follow_qp(self, q1: float, q2: float, r1: float, c_tg: float, r_jerk: float):

@@ -48,19 +48,12 @@ log-uniform in ``Q1N_RANGE`` = [0.02, 2.8] and sets ``q1 = q1n (20 m/s / v)^4``:
   40 m/s): from 20 to 40 m/s its braking-start ``a_req`` stays within 0.05 m/s^2 for
   ``q1n`` = 0.33 and within 0.2 for 0.1 and 1 (weak drivers brake up to 0.17 earlier when
   fast, strong ones 0.05-0.1 later); it is milder below about 15 m/s, where the standstill
-  gap and the jerk bound, which do not scale, take over (``tests/drivers/test_population.py``). (driver model 2 used
-  ``(20/v)^2.5``, fitted to the 15-35 m/s aggregate: its 30-40 m/s drivers braked at -1.82.)
-* the range is calibrated (driver model 5, issue 37): two numbers against Table A3 (its
-  four band medians and the whole population's quartiles) and Fig. 7a (mean and sd), on
-  a few thousand naturalistic drivers of ``benchmarks/fidelity.py`` under other seeds than
-  the report's. Driver model 3's range [0.04, 2.8] was chosen on Fig. 7a alone with 300
-  drivers, whose 45 drivers braking at 30-40 m/s happened to give -1.22; with 400-1,200
-  drivers that band's median is -1.28 to -1.40 and the 10-20 m/s band's -1.49 to -1.57
-  (paper -1.20 and -1.36), while the whole population's mean and quartiles fit [0.04, 2.8]
-  and [0.02, 2.8] about equally. [0.02, 2.8] puts every band within 0.05 m/s^2 of the paper
-  (Fig. 7a mean -1.33, sd 0.47). Its lower end had been held at 0.04 because weaker drivers
-  crawled towards a stopped queue; driver model 3 removed that (a driver rolling on at
-  creep speed no longer slows down), and the report checks every stop.
+  gap and the jerk bound, which do not scale, take over (``tests/drivers/test_population.py``).
+* the range is calibrated: two numbers against Table A3 (its four band medians and the
+  whole population's quartiles) and Fig. 7a (mean and sd), on a few thousand naturalistic
+  drivers of ``benchmarks/fidelity.py`` under other seeds than the report's. [0.02, 2.8]
+  puts every band within 0.05 m/s^2 of the paper (Fig. 7a mean -1.33, sd 0.47); the report
+  checks every stop. The exponent and ranges tried before: ``docs/design/driver-distance-weight.md``.
 * what makes the fastest band brake late is who is in it, not a speed law: a driver is
   counted in the band of its speed at the braking start, and drivers who brake early have
   sailed longer and slowed into the band below, so the 30-40 m/s band holds the late

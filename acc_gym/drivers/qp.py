@@ -230,7 +230,7 @@ def _spd_inverse(a):  # pragma: no cover - compiled
     Every entry is one sequential sum (``k`` ascending), as in the textbook loops; the
     loops run four independent sums side by side (four rows of ``L``, four rows of
     ``(L^-1)'``, four entries of the inverse) so that the processor overlaps their
-    additions -- the same operations in the same order, hence the same bits, in about
+    additions -- the same operations in the same order, hence the same values exactly, in about
     half the time. In the ``(L^-1)'`` sweep the sums of a block start at its first row
     ``j0``; the extra terms are products with the zeros below the diagonal, which leave
     a sum that starts at +0.0 unchanged."""
@@ -327,7 +327,7 @@ def _assemble_hessian(pp, pv_sym, vv, dd, x_n, v_n, q1, q2, r1, c_tg, r_jerk, p0
 def _lead_linear_term(pp, vp, vv, vv_n, x_n, p_n, v_n, q1, q2, c_tg, p00, p01, p11):  # pragma: no cover - compiled
     """:attr:`CondensedQP.f_lead`, ``2 M'W [Tp; Tv]`` with the sign of ``-M``: entry by entry the
     numpy expression ``2 * -(q1 (pp + c vp) + q2 vv + p00 x_n p_n' + p11 vv_n + p01 (x_n v_n' + v_n p_n'))``,
-    each operation in the same order (so the same bits), without its dozen ``N x N`` temporaries."""
+    each operation in the same order (so the same values exactly), without its dozen ``N x N`` temporaries."""
     n = pp.shape[0]
     out = np.empty((n, n))
     for i in range(n):
@@ -357,7 +357,7 @@ def _running_sums(hinv):  # pragma: no cover - compiled
 @numba.njit(cache=True)
 def _row_cumsums(g):  # pragma: no cover - compiled
     """``(N, N+1)``: a zero column, then ``np.cumsum(g, axis=1)`` (numpy's accumulate: each row
-    summed in order from its first entry, so the same bits) without its strided output."""
+    summed in order from its first entry, so the same values exactly) without its strided output."""
     n, m = g.shape
     out = np.zeros((n, m + 1))
     for i in range(n):

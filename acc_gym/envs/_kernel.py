@@ -348,7 +348,7 @@ def margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, r
     ``w``: :data:`MARGIN_W`. The formulas and the order of the operations are those of
     :meth:`MarginReward.__call__ <acc_gym.envs.reward.MarginReward.__call__>` (its numpy
     formulation, the reference: ``tests/envs/test_env_fast_paths.py`` checks the two agree
-    bit for bit), one scene at a time instead of some forty array operations a step.
+    exactly), one scene at a time instead of some forty array operations a step.
     """
     (band_w, eff_w, speed_w, resp_w, comfort_w, jerk_w, safety_w, coll_w, lag_w, peak, slope, resp_decel,
      jerk_scale, max_cost, a_counted, jerk_counted, e_counted, over_w, over_scale, reach_w, behind_w, stand_w, stand_gap,

@@ -290,41 +290,26 @@ class ACCEnv(gym.Env):
 
     ## Version History
 
-    * v0: initial version.
-    * v1 (acc-gym 0.7.0, issue 33): the safety-margin features appended to the
-      observation; :class:`~acc_gym.envs.reward.MarginReward` the default reward;
-      ``CarFollowing-v1`` trains on varied traffic (paper 003's test drawn over 40-130 km/h
-      and gentle to emergency stops, the test itself, stop-and-go, paper 004's
-      car-following) behind naturalistic drivers (:data:`acc_gym.envs.registration.CARFOLLOWING_V1`);
-      the others draw what their v0 draws. The v0 ids are unchanged (stored reference
-      episodes, ``tests/envs/test_v0_reference.py``). Provisional until issue 33's shipped
-      policies are trained on it: a change before acc-gym 0.8.0 is listed here.
-    * acc-gym 0.10.0 (issue 35), opt-in and no id's default: ``scenario_generator="counter"``
-      draws each scenario's parameters with a compiled counter-based generator keyed by the
-      scenario's ``(id, seed)`` (:class:`~acc_gym.envs.config.CounterScenarioSampler`,
-      :mod:`acc_gym.scenarios.batched`; a vector env draws the scenes it resets in one
-      call): the same ``(id, seed)`` sequence and laws as the default, other numbers.
-    * acc-gym 0.11.0 (issue 33), no id changed: ``MarginReward`` has two more terms, ``reach``
-      and ``overspeed``, both of weight 0 in the ``-v1`` ids' reward (so its values are as
-      before; ``info["rewards"]`` lists them, at 0); ``reward_fn=`` also takes a mapping of
-      the default reward's weights (the shipped training settings set ``reach``).
-    * acc-gym 0.13.0 (issue 33), no id changed: ``MarginReward`` has one more term,
-      ``behind`` (weight 0 in the ``-v1`` ids' reward: its values are as before;
-      ``info["rewards"]`` lists it, at 0).
-    * acc-gym 0.14.0 (issue 33), no id changed: ``MarginReward`` has one more term,
-      ``standstill`` (weight 0 in the ``-v1`` ids' reward: its values are as before;
-      ``info["rewards"]`` lists it, at 0).
-    * acc-gym 0.17.0 (issue 33), no id changed: ``MarginReward`` has one more term,
-      ``demand`` (weight 0 in the ``-v1`` ids' reward: its values are as before;
-      ``info["rewards"]`` lists it, at 0).
-    * acc-gym 0.20.0 (issue 33), no id changed: ``MarginReward`` has two more terms,
-      ``release`` and ``let_go`` (weight 0 in the ``-v1`` ids' reward: its values are as
-      before; ``info["rewards"]`` lists them, at 0).
-    * acc-gym 0.20.3 (issue 33), no id changed: ``MarginReward`` has one more term,
-      ``stop_demand`` (weight 0 in the ``-v1`` ids' reward: its values are as before;
-      ``info["rewards"]`` lists it, at 0).
-    * acc-gym 0.20.4 (issue 33), no id changed: ``MarginReward`` has a switch,
-      ``behind_outside_margin`` (off in the ``-v1`` ids' reward: its values are as before).
+    * v0: the observation's measured fields (indices 0-6; 0-10 with ``v2v``) and
+      :class:`~acc_gym.envs.reward.CriteriaReward`, the score's own terms, as the reward;
+      each id draws its own scenario families. Checked against stored reference episodes
+      (``tests/envs/test_v0_reference.py``).
+    * v1: the v0 observation plus the safety-margin features
+      (:mod:`acc_gym.envs.observation`); :class:`~acc_gym.envs.reward.MarginReward` the
+      default reward, with its optional terms at weight 0 and ``behind_outside_margin`` off
+      (``info["rewards"]`` lists every term); ``CarFollowing-v1`` trains on varied traffic
+      (paper 003's test drawn over 40-130 km/h and gentle to emergency stops, the test
+      itself, stop-and-go, paper 004's car-following) behind naturalistic drivers
+      (:data:`acc_gym.envs.registration.CARFOLLOWING_V1`); the others draw what their v0
+      draws.
+
+    In both versions the surrounding MPC drivers are driver model 5
+    (``acc_gym.drivers.mpc.ENV_DRIVER_MODEL``). Either version takes
+    ``scenario_generator="counter"`` (opt-in, no id's default): each scenario's parameters
+    drawn with a compiled counter-based generator keyed by the scenario's ``(id, seed)``
+    (:class:`~acc_gym.envs.config.CounterScenarioSampler`, :mod:`acc_gym.scenarios.batched`;
+    a vector env draws the scenes it resets in one call): the same ``(id, seed)`` sequence
+    and laws as the default, other numbers.
     """
 
     metadata = {"render_modes": ["rgb_array", "human"], "render_fps": 5}
@@ -388,7 +373,7 @@ class ACCEnv(gym.Env):
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
         x = float(action[0]) if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f" else None
         if x is not None and math.isfinite(x):  # the usual action: one finite float, mapped with Python floats
-            x = min(max(x, -1.0), 1.0)  # the operations of action_to_accel's kernel, so the same bits
+            x = min(max(x, -1.0), 1.0)  # the operations of action_to_accel's kernel, so the same values exactly
             a_des = self._a_des  # the env's own (1,) array: the step reads it, nothing keeps it
             a_des[0] = x * self._accel_max if x >= 0 else x * self._decel_max
         else:

@@ -147,7 +147,7 @@ class ScenarioSampler:
 
 
 class CounterScenarioSampler(ScenarioSampler):
-    """A scenario generator on the counter-based generator (issue 35; opt-in:
+    """A scenario generator on the counter-based generator (opt-in:
     ``gymnasium.make(id, scenario_generator="counter")``, likewise ``make_vec``): an id and
     a seed drawn from the environment's generator exactly as :class:`ScenarioSampler`
     draws them, then the scenario of that ``(id, seed)`` from

@@ -200,7 +200,7 @@ class EpisodeBatch:
         The features are computed from the fields as emitted (rounded to ``dtype``, float32 in
         the envs), so they are exactly what :func:`~acc_gym.envs.observation.margin_features`
         computes from the emitted ``-v0`` fields: a ``-v1`` policy given a ``-v0`` observation
-        acts bit for bit as on the ``-v1`` one (:class:`acc_gym_agents.rl.policy.SB3Policy`)."""
+        acts exactly as on the ``-v1`` one (:class:`acc_gym_agents.rl.policy.SB3Policy`)."""
         low, high = self._feature_bounds
         if dtype is np.float32 and obs0.dtype == np.float64:  # the envs' case, in one compiled call
             out32 = np.empty((obs0.shape[0], obs0.shape[1] + low.shape[0]), dtype=np.float32)

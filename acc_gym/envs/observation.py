@@ -5,7 +5,7 @@ Paper 003's score judges following by the safety margin ``Q = D1 - Gapsafe`` and
 quadratic of what the radar measures: about 4 m wide at 60 km/h, and the policy has to
 find it inside a 200 m gap. An ACC computes such margins itself (ISO 15622's time gap,
 time to collision, the required deceleration); they are part of the observation from the
-``-v1`` environment ids on (issue 33). This module computes them from the observation's
+``-v1`` environment ids on. This module computes them from the observation's
 own fields, so they add nothing the controller could not compute, and they are the same
 for one env, a vector env and a batch of stored observations.
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import importlib
 
-# The -v1 car-following id trains on varied traffic (issue 33): paper 003's test drawn wider
+# The -v1 car-following id trains on varied traffic: paper 003's test drawn wider
 # (40-130 km/h, gentle to emergency stops), the test itself, stop-and-go queues and paper
 # 004's car-following configuration, behind naturalistic human-like drivers; paper 003's
 # test stays what is scored (the carfollowing-v1 suite, CarFollowing-v0).
@@ -39,7 +39,7 @@ ENV_IDS = {
     "acc_gym/SingleLane-v0": (("singlelane",), {}),  # paper 004's 22 configurations by occurrence rate
     "acc_gym/NCAP-v0": (("ncap",), {}),  # CCRs, CCRm, CCRb
     "acc_gym/StopAndGo-v0": (("stopandgo",), {}),
-    # version 1: the safety-margin features in the observation, MarginReward (issue 33)
+    # version 1: the safety-margin features in the observation, MarginReward
     "acc_gym/CarFollowing-v1": (CARFOLLOWING_V1, {"version": 1, "drivers": "naturalistic"}),
     "acc_gym/SingleLane-v1": (("singlelane",), {"version": 1}),
     "acc_gym/NCAP-v1": (("ncap",), {"version": 1}),

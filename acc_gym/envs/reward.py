@@ -178,7 +178,7 @@ class CriteriaReward:
 
 @dataclass(frozen=True)
 class MarginReward:
-    """A reward for learning ACC from scratch (issue 33; the ``-v1`` ids' default): the
+    """A reward for learning ACC from scratch (the ``-v1`` ids' default): the
     score's own terms, reshaped so that their optimum sits inside the band rather than on
     the safety boundary and so that every state has a gradient.
 
@@ -269,76 +269,45 @@ class MarginReward:
       followable vehicle (an ACC drives at its set speed until it closes in), and the lag
       term grows without a plateau.
 
-    Seven terms are off in the ``-v1`` ids' own reward (weight 0, so the ids' rewards are as
-    released in 0.8.0); the shipped PPO training settings turn ``reach`` on (acc-gym 0.11.0,
-    ``agents/rl/hyperparams/ppo.yml``: ``env_kwargs: {reward_fn: {reach: 0.5}}``; an env's
-    ``reward_fn=`` takes the weights as a mapping):
+    The terms from ``overspeed`` on are off in the ``-v1`` ids' own reward (weight 0), and
+    so is the switch ``behind_outside_margin``; an env's ``reward_fn=`` takes the weights as a
+    mapping. The shipped PPO training settings (``agents/rl/hyperparams/ppo.yml``,
+    ``env_kwargs: {reward_fn: {...}}``) turn on all but ``standstill`` and ``release``. What
+    each term is for:
 
     * **reach** fills the dead zone just beyond the band: between its far edge
       (``1.2 Gapsafe``) and the lag's start (``D = 1.2 Gapsafe + 5 m`` at equal speeds) no
-      term paid anything, and past ``D`` the lag's slope is about ``0.5 / D`` per metre (0.01
-      at 90 km/h). PPO seeds that settled into following there stayed for a million steps
-      (10 % qualified at every checkpoint); with ``reach`` 0.5 both validation seeds learnt
-      the band (93 % and 86 % on ``CarFollowing-v1``, docs/rl-training.md). A following
-      sample's order by its gap is unchanged: inside the band is still best.
+      other term pays anything, and past ``D`` the lag's slope is about ``0.5 / D`` per metre
+      (0.01 at 90 km/h). A following sample's order by its gap is unchanged: inside the band
+      is still best.
     * **overspeed** charges any speed above the set speed, following or not (an ACC never
-      exceeds it). Tried against the drift to about 27 m/s with nothing in view whatever the
-      set speed; it shrank the drift but cost car-following skill on two seeds, and is not
-      in the shipped settings. With ``behind`` (PPO, five seeds, after 0.13.0) it removed the
-      drift and every collision, but one seed crept up to stopped leads, which no term
-      charges, and car-following fell: not adopted either (docs/rl-training.md).
+      exceeds it).
     * **behind** charges every step far behind a followable vehicle, where the speed term
       pays up to ``+1`` for driving at the set speed (so that a parked or far-behind ego has
       a gradient): with ``behind`` equal to the speed weight, being far behind never pays
       more than 0, and closing in from there to the band never loses reward (without it the
-      reward drops by up to 1 at the lag's start, where the speed term stops). SAC sat on
-      that plateau (about 1.5-2.5 Gapsafe behind at the set speed; acc-gym 0.13.0,
-      docs/rl-training.md); with the term it closed in but rode the band's near edge at
-      200k steps, and one seed of three learnt to follow in 400k. PPO with it approached
-      better (median 84 % of approaches qualified, 45 % without) but two of five seeds met
-      the bar's per-seed terms against four: 30 single-lane collisions, each with a lane
-      change just ahead (a cut-in, or the ego merging in behind a vehicle). Not in the
-      shipped settings.
+      reward drops by up to 1 at the lag's start, where the speed term stops).
     * **standstill** charges closing on a stopped vehicle so that a stop at the proper
-      response would end within ``standstill_gap``, and standing there. Behind a stopped
-      vehicle no other term applies (it is neither followable nor free), and a PPO policy
-      trained with ``behind`` and ``overspeed`` crept up to stopped leads at 0.5 m/s until
-      Gapsafe exceeded the gap (0.7 m), a safety violation in 15 of 100 car-following
-      episodes (docs/rl-training.md). Like ``lag`` it sees a vehicle at any distance ahead
-      (a training signal, not a sensor); a vehicle ahead at 0.5-1 m/s is neither stopped nor
-      followable, and no term covers it. With it (PPO, five seeds, acc-gym 0.14.0) no seed
-      failed behind a stopped lead by creeping, but cut-in collisions came back (7 in 2,000
-      validation episodes against the shipped settings' 2). Not in the shipped settings.
-    * **demand** (acc-gym 0.17.0) grades braking beyond the proper response. ``response``
-      is silent once the ego brakes at 2 m/s^2 or more, while ``comfort`` charges
-      ``0.1 (a / 3)^2`` a step: releasing from 5.3 to 2.1 m/s^2 earns 0.26 a step, and the
-      PPO runs that collided in emergency stops (seed 2 of the 0.15.0 and 0.16.0
-      candidates) learnt exactly that release while ``a_req`` rose past 4 m/s^2
-      (docs/rl-training.md). With ``demand`` 1 the same release costs 0.91 a step (at
-      ``a_req`` 3.1). The score's optimum is not moved: its proper response asks for
-      2 m/s^2 or more while ``Q < 0``, and braking at ``a_req`` meets it (a collision
-      scores 0). With it (PPO, five seeds, 0.17.0) four seeds met the bar's per-seed terms
-      on a validation seed and none collided in single-lane traffic, but one seed collided
-      in three emergency stops, braking too little without releasing. Not in the shipped
-      settings.
-    * **release** (acc-gym 0.20.0) charges the half of the jerk that lets go of the brake
-      while ``Q < 0``. With ``jerk`` 0.02 the deterministic PPO policies of candidate K
-      alternated step by step between hard braking and letting go in the lead's final
-      stop (the release sample a proper-response violation); ``jerk`` 0.1 on both signs
-      removed that but slowed the onset of hard braking (collisions in emergency stops;
-      docs/rl-training.md). ``release`` 0.08 on top of ``jerk`` 0.02 charges a release
-      inside Gapsafe what ``jerk`` 0.1 did and braking harder what 0.02 did. The score's
-      optimum is not moved: inside Gapsafe the score asks for braking at 2 m/s^2 or more,
-      and a smooth release meets it. With it (PPO, five seeds, candidate O) the oscillation
-      went and the median seed qualified in 96 % of car-following episodes, but two seeds
-      collided in car-following braking events (easing off as the lead stopped). Not in the
-      shipped settings.
-    * **let_go** (acc-gym 0.20.0) is ``release`` restricted to a release that ends weaker
-      than the proper response (``a > -a_resp``), which the score already counts as an
-      improper response. Candidate O's policies, charged for every release inside
-      Gapsafe, also braked less hard in emergency stops (a hard brake must be eased later);
-      easing from a hard brake to 2 m/s^2 or more costs only ``jerk`` here. Candidate P
-      (docs/rl-training.md).
+      response would end within ``standstill_gap``, and standing there: behind a stopped
+      vehicle no other term applies (it is neither followable nor free). Like ``lag`` it sees
+      a vehicle at any distance ahead (a training signal, not a sensor); a vehicle ahead at
+      0.5-1 m/s is neither stopped nor followable, and no term covers it.
+    * **demand** grades braking beyond the proper response: ``response`` is silent once the
+      ego brakes at 2 m/s^2 or more, while ``comfort`` charges ``0.1 (a / 3)^2`` a step, so
+      releasing from 5.3 to 2.1 m/s^2 earns 0.26 a step however high ``a_req`` is; with
+      ``demand`` 1 the same release costs 0.91 a step (at ``a_req`` 3.1). The score's optimum
+      is not moved: its proper response asks for 2 m/s^2 or more while ``Q < 0``, and braking
+      at ``a_req`` meets it (a collision scores 0).
+    * **release** charges the half of the jerk that lets go of the brake while ``Q < 0``:
+      ``release`` 0.08 on top of ``jerk`` 0.02 charges a release inside Gapsafe what ``jerk``
+      0.1 would and braking harder what 0.02 does. The score's optimum is not moved: inside
+      Gapsafe the score asks for braking at 2 m/s^2 or more, and a smooth release meets it.
+    * **let_go** is ``release`` restricted to a release that ends weaker than the proper
+      response (``a > -a_resp``), which the score already counts as an improper response:
+      easing from a hard brake to 2 m/s^2 or more costs only ``jerk``.
+
+    What each term was tried against and how it did in PPO and SAC training:
+    ``docs/design/margin-reward-terms.md``.
     """
 
     band: float = 1.0
@@ -350,16 +319,16 @@ class MarginReward:
     safety: float = 2.0
     collision: float = 100.0
     lag: float = 0.5
-    overspeed: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried, not in the shipped training
+    overspeed: float = 0.0  # 0: off in the -v1 ids' reward; the shipped PPO training turns it on
     overspeed_scale: float = 0.1  # [-] the overspeed term charges w per this share of the set speed over it
-    reach: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); the shipped PPO training sets 0.5
-    behind: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.13.0, not shipped
-    standstill: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.14.0, not shipped
-    demand: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.17.0, not shipped
-    release: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); tried in 0.20.0, not shipped
-    let_go: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); candidate P (0.20.0)
-    stop_demand: float = 0.0  # 0: the -v1 ids' default reward as released (0.8.0); added in 0.20.3, candidate W
-    # False: the -v1 ids' default reward as released (0.8.0), far behind counted inside Gapsafe too; added in 0.20.4
+    reach: float = 0.0  # 0: off in the -v1 ids' reward; the shipped PPO training turns it on
+    behind: float = 0.0  # 0: off in the -v1 ids' reward; the shipped PPO training turns it on
+    standstill: float = 0.0  # 0: off in the -v1 ids' reward and in the shipped PPO training
+    demand: float = 0.0  # 0: off in the -v1 ids' reward; the shipped PPO training turns it on
+    release: float = 0.0  # 0: off in the -v1 ids' reward and in the shipped PPO training
+    let_go: float = 0.0  # 0: off in the -v1 ids' reward; the shipped PPO training turns it on
+    stop_demand: float = 0.0  # 0: off in the -v1 ids' reward; the shipped PPO training turns it on
+    # False (the -v1 ids' reward): far behind counted inside Gapsafe too; the shipped PPO training sets True
     behind_outside_margin: bool = False
     standstill_gap: float = 3.0  # [m] the standstill term charges a stop (at the proper response) closer than this
     peak: float = 0.5  # [-] u_t where the efficiency tent is highest (0: the safety boundary, 1: the band's far edge)
@@ -401,7 +370,7 @@ class MarginReward:
         builds from the rows of :func:`acc_gym.envs._kernel.criteria`'s outputs ``fl`` and
         ``bo``, the scenes' step budgets ``steps`` and steps taken ``k`` (int arrays), in one
         compiled call (:func:`acc_gym.envs._kernel.margin_reward_rows`, the same operations
-        in the same order: the same bits). The core takes this path for a ``MarginReward``
+        in the same order: the same values exactly). The core takes this path for a ``MarginReward``
         (the ``-v1`` ids' default) itself, not for a subclass, which may override
         :meth:`__call__`."""
         from acc_gym.envs import _kernel as K

@@ -12,7 +12,7 @@ branches, clipped or not), the lane items, comfort and the extra metrics of
 rule as :func:`acc_gym.evaluation.metrics.speed_overshoot` and its compiled
 :func:`acc_gym.evaluation.metrics._gradient`).
 
-Every value equals the reference's bit for bit: the formulas are written in numpy's
+Every value equals the reference's exactly: the formulas are written in numpy's
 order of operations, and the three float means (``u`` over car-following samples, ``u``
 of speed keeping, a steady run's lead speed) use :func:`pairwise_sum`, numpy's pairwise
 summation; the other means are shares of counted samples, which numpy computes exactly

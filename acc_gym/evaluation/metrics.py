@@ -43,7 +43,7 @@ def _gradient(f, x):  # pragma: no cover - compiled
     """``np.gradient(f, x)`` for 1-D float arrays (``edge_order=1``), compiled: numpy's own
     formulas in its order of operations (a uniform spacing when every step of ``x`` is
     exactly the first, else the second-order non-uniform stencil; one-sided edges), so
-    the same bits without its dozen temporaries (``tests/evaluation/test_metrics.py``)."""
+    the same values exactly, without its dozen temporaries (``tests/evaluation/test_metrics.py``)."""
     n = f.shape[0]
     out = np.empty(n)
     d0 = x[1] - x[0]

@@ -132,7 +132,7 @@ class EpisodeRun:
 
     :func:`run_episode` drives it with a controller in the same process; the leaderboard
     drives it with actions that come back from a controller in another process, so both
-    produce the same bits for the same actions."""
+    produce the same values for the same actions."""
 
     KEYS = ("x", "v", "a", "a_des", "y", "a_y", "lead", "gap", "mode")
 

@@ -52,8 +52,14 @@ part in the verdict.
   ``N`` positions, spread evenly (``ceil((i + 1) N / k)`` for i = 0..k-1, so the last
   vehicle is always one of them), and human-like MPC drivers of the population
   ``drivers`` drive the others (one driver per position, drawn from
-  ``default_rng([seed, 34])``, desired speed the set speed). ``p = 0`` (the controller
-  ``"human"``) measures the human column alone.
+  ``default_rng([seed, 34])``, desired speed the set speed), behaving as driver model
+  ``driver_model`` (:data:`acc_gym.drivers.mpc.DRIVER_MODELS`; by default the
+  environments' model, :data:`~acc_gym.drivers.mpc.ENV_DRIVER_MODEL`). A model whose
+  perception draws estimation errors draws them, in each row of a batch (a frequency, the
+  disturbance, the trace, an equilibrium run), from its own generator,
+  ``default_rng(SeedSequence([seed, 34, 2, crc32(row name)]))``: a row's draws do not
+  depend on the other rows of its batch (model 6's perception has no errors and draws
+  nothing). ``p = 0`` (the controller ``"human"``) measures the human column alone.
 * A column whose vehicle collides, or whose controller answers NaN, infinity or the wrong
   shape, or raises, is a failed row: the report names the frequency (or input), the
   vehicle and the time, and gives the other rows' results. (A controller that raises in
@@ -82,12 +88,14 @@ from __future__ import annotations
 
 import copy
 import math
+import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from acc_gym._validation import check_finite
 from acc_gym.drivers.base import Observation
+from acc_gym.drivers.mpc import DRIVER_MODELS, ENV_DRIVER_MODEL, driver_model, human_drivers
 from acc_gym.drivers.population import KINDS, sample_drivers
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.core import DT
@@ -121,8 +129,10 @@ class PlatoonConfig:
     ``time_gap`` are what the observation says (None: speed + 5 m/s; the controller's
     declared time gap, else 1.5 s); ``penetration`` the share of the positions the
     controller drives, ``drivers`` the human population of the others and ``seed`` their
-    draw; ``settle`` [s] the time from the start of the oscillation to the start of the
-    fit; ``v2v``, ``version``, ``accel_max``, ``decel_max`` and ``sensor_range`` as in
+    draw, ``driver_model`` their behaviour (a version in
+    :data:`~acc_gym.drivers.mpc.DRIVER_MODELS`; default the environments' model 5; an
+    unknown one is a ValueError naming it); ``settle`` [s] the time from the start of the
+    oscillation to the start of the fit; ``v2v``, ``version``, ``accel_max``, ``decel_max`` and ``sensor_range`` as in
     :class:`~acc_gym.envs.config.EnvConfig`.
     """
 
@@ -139,6 +149,7 @@ class PlatoonConfig:
     accel_max: float = 3.0  # [m/s^2]
     decel_max: float = 8.0  # [m/s^2]
     sensor_range: float = 200.0  # [m]
+    driver_model: int = ENV_DRIVER_MODEL  # the human drivers' model (acc_gym.drivers.mpc.DRIVER_MODELS)
 
     def __post_init__(self) -> None:
         n = self.vehicles
@@ -164,6 +175,11 @@ class PlatoonConfig:
             raise ValueError(f"PlatoonConfig.version must be 0 or 1, got {self.version!r}")
         if not isinstance(self.v2v, bool):
             raise ValueError(f"PlatoonConfig.v2v must be True or False, got {self.v2v!r}")
+        try:
+            driver_model(self.driver_model)
+        except ValueError:
+            raise ValueError(f"PlatoonConfig.driver_model must be one of {sorted(DRIVER_MODELS)}, got "
+                             f"{self.driver_model!r}") from None
 
     @property
     def cruise_speed(self) -> float:
@@ -317,7 +333,8 @@ class StringStabilityReport:
         return {
             "controller": self.controller, "vehicles": c.vehicles, "speed": c.speed, "set_speed": c.cruise_speed,
             "time_gap": self.time_gap, "penetration": c.penetration, "positions": list(self.positions),
-            "drivers": c.drivers if len(self.positions) < c.vehicles else None, "v2v": c.v2v,
+            "drivers": c.drivers if len(self.positions) < c.vehicles else None,
+            "driver_model": c.driver_model if len(self.positions) < c.vehicles else None, "v2v": c.v2v,
             "max_gain": num(self.max_gain), "string_stable": self.string_stable, "tolerance": self.tolerance,
             "unstable_bands_hz": [list(b) for b in self.unstable_bands],
             "frequencies": [{"freq_hz": float(f), "gain": num(g), "lead_amplitude": num(a), "column_gain": num(cg),
@@ -334,7 +351,8 @@ class StringStabilityReport:
         c = self.config
         verdict = {True: "string stable", False: "NOT string stable", None: "no verdict"}[self.string_stable]
         lines = [f"{self.controller}: {c.vehicles} vehicles at {c.speed:g} m/s, time gap {self.time_gap:g} s"
-                 + (f", controller in positions {list(self.positions)} ({c.drivers} human drivers elsewhere)"
+                 + (f", controller in positions {list(self.positions)} ({c.drivers} human drivers, driver model "
+                    f"{c.driver_model}, elsewhere)"
                     if len(self.positions) < c.vehicles else ""),
                  f"  largest gain {self.max_gain:.4f} -> {verdict} (rule: <= 1 + {self.tolerance:g})"]
         if self.unstable_bands:
@@ -441,10 +459,10 @@ class Remote:
         return np.clip(acts, -1.0, 1.0)
 
 
-def remote_actors(exchange):
+def remote_actors(exchange, first_slot: int = 0):
     """``actors`` for :func:`measure` whose copies are reached through ``exchange`` (:class:`Remote`);
-    every batch gets new slots, so every simulation starts from fresh copies."""
-    counter = [0]
+    every batch gets new slots (``first_slot`` on), so every simulation starts from fresh copies."""
+    counter = [int(first_slot)]
 
     def make(cells):
         first = counter[0]
@@ -504,7 +522,6 @@ def _simulate(actors, layout: np.ndarray, humans, lead: np.ndarray, gap0: np.nda
     controller) or a human driver's index into
     ``humans``; ``lead`` ``(B, T+1)`` the lead's speed at each step; ``gap0`` ``(B, N)`` and
     ``v0`` ``(B,)`` the start. Raises :class:`_Raised` when a vectorised controller raises."""
-    from acc_gym.drivers.mpc import MPCDriver
     from acc_gym.envs.acc_env import observation_space
     from acc_gym.envs.config import EnvConfig
     from acc_gym.envs.observation import margin_features
@@ -522,7 +539,9 @@ def _simulate(actors, layout: np.ndarray, humans, lead: np.ndarray, gap0: np.nda
     driver = None
     if human_cells.size:
         params = humans.take(layout[~mine])
-        driver = MPCDriver(params, n=len(human_cells))
+        counts = np.bincount(human_cells[:, 0], minlength=B)  # the rows' drivers are consecutive (row-major)
+        driver = human_drivers(params, cfg.driver_model,
+                               groups=[(_row_rng(cfg, row_names[b]), int(counts[b])) for b in range(B)])
     x = np.zeros((B, N + 1))
     x[:, 1:] = -np.cumsum(gap0 + LENGTH, axis=1)
     v = np.broadcast_to(np.asarray(v0, float)[:, None], (B, N + 1)).copy()
@@ -607,6 +626,11 @@ def _simulate_rows(actors, layout, humans, lead, gap0, v0, cfg, time_gap, row_na
                 errors)
 
 
+def _row_rng(cfg: PlatoonConfig, row: str) -> np.random.Generator:
+    """The generator of the human drivers' perception in the row named ``row`` (module docstring)."""
+    return np.random.default_rng(np.random.SeedSequence([int(cfg.seed), 34, 2, zlib.crc32(row.encode())]))
+
+
 def _layout(cfg: PlatoonConfig) -> np.ndarray:
     """(N,) -1 where the controller drives, else the human driver's index."""
     kinds = np.full(cfg.vehicles, -1, dtype=np.int64)
@@ -634,13 +658,13 @@ def _equilibrium(actors, name: str, cfg: PlatoonConfig, humans, time_gap: float,
     lead = np.full((B, T + 1), float(speed))
     guess = min(2.5 + time_gap * speed, 0.8 * cfg.sensor_range)
     gap0 = np.full((B, 2), guess)
-    names = ["equilibrium" for _ in distinct]
+    names = [f"equilibrium {b}" for b in range(len(distinct))]
     run = _simulate_rows(actors, layout, humans, lead, gap0, np.full(B, float(speed)), cfg, time_gap, names)
     gaps = run.x[:, :, :-1] - LENGTH - run.x[:, :, 1:]
     last = int(round(10.0 / DT))
     out = {}
     for b, kind in enumerate(distinct):
-        who = name if kind < 0 else f"human driver {kind} ({cfg.drivers})"
+        who = name if kind < 0 else f"human driver {kind} ({cfg.drivers}, driver model {cfg.driver_model})"
         if b in run.errors:
             e = run.errors[b]
             raise StringStabilityError(f"{who} does not follow a lead at a constant {speed:g} m/s: copy {e.vehicle} "

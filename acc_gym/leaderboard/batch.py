@@ -7,7 +7,7 @@ It does per row what :class:`acc_gym.envs.acc_env.ACCEnv` does for its one scene
 same observation bounds and dtype (float32), the same action mapping
 (:func:`~acc_gym.envs.acc_env.action_to_accel`: the operations of the single env's
 fast path), the same final info -- and the rows of an ``EpisodeBatch`` do not interact
-(``tests/envs/test_vector_env.py``: a vector env equals single envs bit for bit), so an
+(``tests/envs/test_vector_env.py``: a vector env equals single envs exactly), so an
 episode's score here is the score ``acc-gym evaluate`` gives it
 (``tests/leaderboard/test_leaderboard.py`` checks every built-in). Stepping 16 scenes in
 one call instead of 16 single environments is what keeps the trusted simulation process

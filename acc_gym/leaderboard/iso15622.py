@@ -6,7 +6,7 @@ battery's 30 episodes (10 cases at seeds 0, 1, 2) with the controller's answers,
 drives and checks them (:func:`acc_gym.standards.battery.remote_iso15622_report`): the
 controller only ever sees observation rows, as in its episodes; the verdict is made in the
 simulation process and sent to the runner as the JSON-safe cell :func:`cell`. It is the verdict
-``acc-gym conformance CONTROLLER --standard iso15622`` gives (the same drives, the same bits).
+``acc-gym conformance CONTROLLER --standard iso15622`` gives (the same drives, the same values).
 
 The column is information beside the ranking: it changes no episode's points and no rank. A
 controller's failure inside the battery (it raises, answers NaN, overruns a budget) is the

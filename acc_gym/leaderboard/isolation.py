@@ -30,11 +30,13 @@ controller's traceback when it sent one); episodes finished before a failure are
 episode (lowest score, then a collision first, then the earliest) with recording, for
 the report's plots. The controller's standard output and error go to its own log file.
 
-Then the columns measured through the same sandbox, each a cell whose failure is its own (the
-episodes stand): string stability (``platoon``) and ISO 15622 (``iso15622``,
-:mod:`acc_gym.leaderboard.iso15622`). A controller failure leaves the sandbox's socket in an
-unknown state (an answer may still be on its way), so a column after a failed one starts the
-controller afresh, under the same total budget.
+Then the columns measured through the same sandbox (:class:`Columns`), each a cell whose failure
+is its own (the episodes stand): string stability, ISO 15622 (:mod:`acc_gym.leaderboard.iso15622`)
+and waves on a ring (:mod:`acc_gym.leaderboard.waves`). Each column's copies of the controller
+are fresh ones (slots no earlier round trip used), and its first round trip is exempt from the
+step budget (the sandbox makes those copies then). A controller failure leaves the sandbox's
+socket in an unknown state (an answer may still be on its way), so a column after a failed one
+starts the controller afresh, under the same total budget.
 """
 
 from __future__ import annotations
@@ -54,8 +56,25 @@ POLL_S = 0.05  # [s] how often the runner looks at its simulations
 IN_FLIGHT = 16  # episodes a controller answers per round trip
 
 
-class StepBudgetExceeded(RuntimeError):
-    """A ``predict`` call took longer than the step budget."""
+@dataclass(frozen=True)
+class Columns:
+    """The columns measured after a controller's episodes, through the same sandbox."""
+
+    platoon: bool = False  # string stability (acc_gym.evaluation.string_stability.leaderboard_verdict)
+    iso15622: bool = False  # ISO 15622 on the iso15622-v1 battery (acc_gym.leaderboard.iso15622)
+    waves: dict | None = None  # the all-human rings (acc_gym.leaderboard.waves.human_baseline); None: no column
+
+    def __iter__(self):
+        """The columns to measure, in order: ``(name, measure, failed_cell)``; ``measure(column)``
+        takes a :class:`_Column` and returns the cell, raising :class:`ControllerFailed`."""
+        from acc_gym.leaderboard import iso15622, waves
+
+        if self.platoon:
+            yield "string_stability", _platoon, lambda reason: {"failed": reason}
+        if self.iso15622:
+            yield "iso15622", _iso15622, iso15622.failed_cell
+        if self.waves is not None:
+            yield "waves", lambda column: _waves(column, self.waves), waves.failed_cell
 
 
 def step_budget_message(budget: float) -> str:
@@ -190,6 +209,23 @@ class ControllerFailed(Exception):
         self.reason, self.tb = reason, tb
 
 
+def check_actions(actions, where) -> None:
+    """The one check of a controller's answers: a NaN or infinite action is its failure, named as
+    the environments name it (``where(k)``: where row ``k`` was)."""
+    import numpy as np
+
+    bad = ~np.isfinite(actions)
+    if bad.any():
+        k = int(np.argmax(bad))
+        value = actions[k]
+        raise ControllerFailed(f"ValueError: action {'is NaN' if np.isnan(value) else 'must be finite'}: {value!r} "
+                               f"(at {where(k)})")
+
+
+def _job_name(job: Job) -> str:
+    return f"{job.suite} episode {job.episode} ({job.scenario.id})"
+
+
 def _ended(ctl, grace: float = 5.0) -> str:
     """Why the controller's end of the socket closed: the trusted side killed it (a limit, its
     ``stopped`` reason), its process died (with its exit code), or it closed the connection and
@@ -247,8 +283,7 @@ def _hello(ctl, budget: float, deadline_total: float) -> float | None:
 
 
 def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float, traces: bool, log_path: str,
-             uid: int | None, sandbox: str, in_flight: int, runner_pid: int, platoon: bool = False,
-             iso15622: bool = False) -> None:
+             uid: int | None, sandbox: str, in_flight: int, runner_pid: int, columns: Columns = Columns()) -> None:
     """The simulation process for one controller (see the module docstring)."""
     from acc_gym._process import become_subreaper, die_with_parent, kill_all
     from acc_gym.leaderboard.sandbox import ControllerProcess
@@ -288,7 +323,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
 
         def run_batched(order: list[int], on_done) -> None:
             """Run the jobs ``order``, each env id's as rows of one :class:`EpisodeBatch` with
-            ``in_flight`` rows (its scenes step together; bit-identical to single envs)."""
+            ``in_flight`` rows (its scenes step together, as single envs would)."""
             by_env: dict[str, list[int]] = {}
             for j in order:
                 by_env.setdefault(jobs[j].env_id, []).append(j)
@@ -308,12 +343,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
                                         deadline_total, step_budget, budget, where)
                     first[0] = False
                     starts[:] = False
-                    bad = ~np.isfinite(actions)
-                    if bad.any():  # what the env says of a NaN or infinite action
-                        job = jobs[active[int(rows[np.argmax(bad)])]]
-                        what = "is NaN" if np.isnan(actions[np.argmax(bad)]) else "must be finite"
-                        raise ControllerFailed(f"ValueError: action {what}: {actions[np.argmax(bad)]!r} (at "
-                                               f"{job.suite} episode {job.episode} ({job.scenario.id}))")
+                    check_actions(actions, lambda k: _job_name(jobs[active[int(rows[k])]]))
                     for row, info in batch.step(rows, actions).items():
                         on_done(active[row], info)
                         if queue:
@@ -347,15 +377,14 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
                 actions = _exchange(ctl, obs, starts, np.array(slots), step_deadline, deadline_total, step_budget,
                                     budget, where)
                 first[0] = False
+                check_actions(actions, lambda k: _job_name(jobs[active[slots[k]][0]]))
                 for s, a in zip(slots, actions):
                     j, run, _ = active[s]
                     active[s][2] = False
                     try:
                         finished = run.step(np.array([a], dtype=np.float32))
-                    except ValueError as exc:  # the env names a bad action (NaN, infinite)
-                        job = jobs[j]
-                        raise ControllerFailed(f"ValueError: {exc} (at {job.suite} episode {job.episode} "
-                                               f"({job.scenario.id}))") from None
+                    except ValueError as exc:  # what else the env refuses
+                        raise ControllerFailed(f"ValueError: {exc} (at {_job_name(jobs[j])})") from None
                     if finished:
                         del active[s]
                         on_done(j, run)
@@ -382,25 +411,21 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
             conn.send(("trace", {"position": k, "score": float(run.info["score"]), "trace": run.trace()}))
         killed = None  # why the trusted side killed a controller process replaced since (a limit)
         sound = True  # the sandbox answered every round trip so far (its socket is in step)
-        next_slot = [in_flight]  # past every slot used so far (the episodes': rows of in_flight)
-        if platoon:
-            cell, sound = _platoon(ctl, declared, step_budget, budget, deadline_total, next_slot)
-            conn.send(("string_stability", cell))
-        if iso15622:
-            from acc_gym.leaderboard.iso15622 import failed_cell
-
+        fresh = in_flight  # past every slot used so far: a column's copies are fresh ones
+        for name, measure, failed_cell in columns:
             try:
                 if not sound:  # the controller failed in the column before: a fresh one, as it was loaded
-                    killed = ctl.stopped
+                    killed = killed or ctl.stopped
                     ctl.close()
                     ctl = ControllerProcess(reference, log_path=log_path, budget=budget, uid=uid, sandbox=sandbox)
                     _hello(ctl, budget, deadline_total)  # judged at the time gap it declared first
-                # fresh slots: every battery episode starts from a fresh copy of the controller
-                cell = _iso15622(ctl, declared, step_budget, budget, deadline_total,
-                                 first_slot=next_slot[0] if sound else 0)
+                    fresh = 0
+                column = _Column(ctl, declared, step_budget, budget, deadline_total, fresh)
+                cell, sound = measure(column), True
+                fresh = column.next_slot
             except ControllerFailed as exc:
-                cell = failed_cell(exc.reason)
-            conn.send(("iso15622", cell))
+                cell, sound = failed_cell(exc.reason), False
+            conn.send((name, cell))
         problem = killed or ctl.stopped or ctl.disk_problem()  # what it wrote after its last answer counts too
         if problem is not None:
             raise ControllerFailed(problem)
@@ -422,56 +447,57 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
         shutil.rmtree(private_dir, ignore_errors=True)
 
 
-def _platoon(ctl, declared, step_budget: float, budget: float, deadline_total: float,
-             next_slot: list | None = None) -> tuple[dict, bool]:
+class _Column:
+    """A column's round trips with the sandboxed controller: budgets as in the episodes (the first
+    round trip of a column is exempt from the step budget: the sandbox makes its fresh copies
+    then; only the total budget bounds it), a NaN or infinite action is the controller's failure,
+    and :attr:`next_slot` is raised past every slot the column uses (from ``first_slot``), so that
+    a later column's copies are fresh ones."""
+
+    def __init__(self, ctl, declared, step_budget: float, budget: float, deadline_total: float, first_slot: int):
+        self.ctl, self.declared, self.first_slot = ctl, declared, first_slot
+        self.step_budget, self.budget, self.deadline_total = step_budget, budget, deadline_total
+        self.next_slot, self.where, self._first = first_slot, "a column", True
+
+    def exchange(self, obs, starts, slots):
+        if len(slots):
+            self.next_slot = max(self.next_slot, int(max(slots)) + 1)
+        step_deadline = None if self._first else time.monotonic() + self.step_budget * len(slots)
+        self._first = False
+        actions = _exchange(self.ctl, obs, starts, slots, step_deadline, self.deadline_total, self.step_budget,
+                            self.budget, self.where)
+        check_actions(actions, lambda k: self.where)
+        return actions
+
+
+def _platoon(column: _Column) -> dict:
     """The string-stability cell (:func:`acc_gym.evaluation.string_stability.leaderboard_verdict`),
-    its column's copies in the controller's sandbox, and whether the controller answered every
-    round trip (False: it failed there; its socket is out of step). A failure there is the
-    cell's, the episodes already received stand. ``next_slot`` (a one-item list): raised past
-    every slot the column uses, so that a later column's copies are fresh ones."""
+    its column's copies in the controller's sandbox."""
     from acc_gym.evaluation.string_stability import leaderboard_verdict, remote_actors
 
-    def exchange(obs, starts, slots):
-        if next_slot is not None and len(slots):
-            next_slot[0] = max(next_slot[0], int(max(slots)) + 1)
-        return _exchange(ctl, obs, starts, slots, time.monotonic() + step_budget * len(slots), deadline_total,
-                         step_budget, budget, "the string-stability column")
-
-    try:
-        return leaderboard_verdict(remote_actors(exchange), declared), True
-    except ControllerFailed as exc:
-        return {"failed": exc.reason}, False
+    column.where = "the string-stability column"
+    return leaderboard_verdict(remote_actors(column.exchange, column.first_slot), column.declared)
 
 
-def _iso15622(ctl, declared, step_budget: float, budget: float, deadline_total: float, first_slot: int) -> dict:
+def _iso15622(column: _Column) -> dict:
     """The ISO 15622 cell (:mod:`acc_gym.leaderboard.iso15622`): the battery's episodes run here,
-    in the simulation process, with the actions of the controller's copies in the sandbox
-    (slots ``first_slot``...); :class:`ControllerFailed` when the controller fails.
-
-    Decisions: the first round trip is exempt from the step budget, as the episodes' first is
-    (the sandbox makes the battery's 30 fresh copies then; a controller that cannot be copied is
-    loaded again for each); only the total budget bounds it. A NaN or infinite action is the
-    controller's failure, as in its episodes."""
-    import numpy as np
-
+    in the simulation process, with the actions of the controller's copies in the sandbox (the
+    battery's 30 fresh copies; a controller that cannot be copied is loaded again for each)."""
     from acc_gym.leaderboard.iso15622 import BATTERY, cell
     from acc_gym.standards.battery import SEEDS, remote_iso15622_report
 
-    first = [True]
-    where = f"the ISO 15622 column ({BATTERY})"
+    column.where = f"the ISO 15622 column ({BATTERY})"
+    return cell(remote_iso15622_report(column.exchange, column.declared, BATTERY, SEEDS,
+                                       first_slot=column.first_slot))
 
-    def exchange(obs, starts, slots):
-        step_deadline = None if first[0] else time.monotonic() + step_budget * len(slots)
-        first[0] = False
-        actions = _exchange(ctl, obs, starts, slots, step_deadline, deadline_total, step_budget, budget, where)
-        bad = ~np.isfinite(actions)
-        if bad.any():
-            value = actions[np.argmax(bad)]
-            raise ControllerFailed(f"ValueError: action {'is NaN' if np.isnan(value) else 'must be finite'}: "
-                                   f"{value!r} (at {where})")
-        return actions
 
-    return cell(remote_iso15622_report(exchange, declared, BATTERY, SEEDS, first_slot=first_slot))
+def _waves(column: _Column, baseline: dict) -> dict:
+    """The wave cell (:mod:`acc_gym.leaderboard.waves`): the controller's rings run here with the
+    actions of its copies in the sandbox, against the all-human rings ``baseline``."""
+    from acc_gym.leaderboard.waves import remote_cell
+
+    column.where = "the wave column"
+    return remote_cell(column.exchange, column.declared, baseline)
 
 
 @dataclass
@@ -486,6 +512,7 @@ class Outcome:
     trace: dict | None = None
     string_stability: dict | None = None
     iso15622: dict | None = None
+    waves: dict | None = None
     wall_time_s: float = 0.0
     log: str | None = None
 
@@ -526,8 +553,8 @@ class _Running:
     on_episode = None  # ``(reference, received, scheduled)`` as each accepted record arrives
 
     def __init__(self, ctx, reference: str, jobs: list, step_budget: float, budget: float, traces: bool,
-                 log_path: str, uid: int | None, sandbox: str, in_flight: int, *, platoon: bool = False,
-                 iso15622: bool = False, start_dir: str | None = None, on_episode=None):
+                 log_path: str, uid: int | None, sandbox: str, in_flight: int, *, columns: Columns = Columns(),
+                 start_dir: str | None = None, on_episode=None):
         self.reference, self.jobs = reference, jobs
         self.on_episode = on_episode
         self.outcome = Outcome(reference, episodes=[], log=log_path)
@@ -536,7 +563,7 @@ class _Running:
         self.conn, child_conn = ctx.Pipe(duplex=False)
         self.process = ctx.Process(target=simulate, name=f"acc-gym-leaderboard[{reference}]",
                                    args=(child_conn, reference, jobs, step_budget, budget, traces, log_path, uid,
-                                         sandbox, in_flight, os.getpid(), platoon, iso15622), daemon=False)
+                                         sandbox, in_flight, os.getpid(), columns), daemon=False)
         self.started = time.monotonic()
         with trusted_start(start_dir):
             self.process.start()
@@ -559,6 +586,8 @@ class _Running:
                     self.outcome.string_stability = payload[0]
                 elif kind == "iso15622":
                     self.outcome.iso15622 = payload[0]
+                elif kind == "waves":
+                    self.outcome.waves = payload[0]
                 elif kind == "done":
                     problem = self.ledger.problem()
                     if problem is not None:
@@ -594,8 +623,8 @@ class _Running:
 
 def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_budget: float, budget: float,
                  traces: bool = False, progress=None, log_dir=None, uids: dict | None = None,
-                 sandbox="process", in_flight: int = IN_FLIGHT, platoon: bool = False,
-                 iso15622: bool = False, limits=None, episode_progress=None) -> dict[str, Outcome]:
+                 sandbox="process", in_flight: int = IN_FLIGHT, columns: Columns = Columns(), limits=None,
+                 episode_progress=None) -> dict[str, Outcome]:
     """Run ``jobs`` for every controller, ``workers`` controllers at a time (module docstring).
 
     ``uids`` maps a reference to the user id its sandbox runs as (None: the runner's);
@@ -603,10 +632,10 @@ def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_b
     the order of ``references``; ``progress(outcome)`` is called as each one finishes, and
     ``episode_progress(reference, received, scheduled)`` as each of its episodes does (``received``
     counts the records the runner accepted for it -- made by its simulation, checked against its
-    schedule by :class:`Ledger` -- 1, 2, ... up to ``scheduled``, before its ``progress``). With
-    ``platoon``, after its episodes each controller's string stability is measured through the
-    same sandbox (``Outcome.string_stability``); with ``iso15622``, then its ISO 15622 verdict on the
-    ``iso15622-v1`` battery (``Outcome.iso15622``, :mod:`acc_gym.leaderboard.iso15622`).
+    schedule by :class:`Ledger` -- 1, 2, ... up to ``scheduled``, before its ``progress``).
+    ``columns`` (:class:`Columns`): after its episodes, each controller's string stability
+    (``Outcome.string_stability``), ISO 15622 verdict on the ``iso15622-v1`` battery
+    (``Outcome.iso15622``) and wave cell (``Outcome.waves``), measured through the same sandbox.
     ``sandbox``: a kind or a :class:`~acc_gym.leaderboard.sandbox.Sandbox`; ``limits``: its
     :class:`~acc_gym.leaderboard.sandbox.Limits` (default: the sandbox's)."""
     import tempfile
@@ -630,7 +659,7 @@ def run_isolated(references: list[str], jobs: list[Job], *, workers: int, step_b
             while pending and len(running) < workers:
                 ref = pending.pop(0)
                 running.append(_Running(ctx, ref, jobs, step_budget, budget, traces, log_file(log_dir, ref),
-                                        uids.get(ref), sandbox, in_flight, platoon=platoon, iso15622=iso15622,
+                                        uids.get(ref), sandbox, in_flight, columns=columns,
                                         start_dir=start_dir, on_episode=episode_progress))
             wait([r.conn for r in running] + [r.process.sentinel for r in running], timeout=POLL_S)
             now = time.monotonic()

@@ -52,6 +52,8 @@ class LeaderboardProgress:
             self.bar.console.print(notice, soft_wrap=True)
         if name == "kernels":
             self.bar.update(self.task, description="compiling kernels" if notice else "loading kernels")
+        elif name == "waves":
+            self.bar.update(self.task, description="driving the all-human rings of the wave column")
         elif name == "controllers":
             self.running = self.names[:self.workers]
             self._describe()

@@ -17,7 +17,7 @@ paper's score gives a collider the safety item's 45 points, as much as a control
 never moves off its set speed's safe side, and a crash must cost more than any timid
 drive -- unless nobody could have avoided it: a collision that UN R157's careful and
 competent driver (the built-in ``cc-driver``, driven on the same scenario by the trusted
-simulation) has too is non-preventable and keeps the episode's score (since 0.9.0; the
+simulation) has too is non-preventable and keeps the episode's score (the
 collision still counts in the collision columns). Equal
 figures (within :data:`~acc_gym.reproducibility.SCORE_TOLERANCE`, what reproduces across
 machines) share a rank and are listed by name; there is no tie-break between different
@@ -173,6 +173,9 @@ STRING_COLUMNS = ("string_max_gain", "string_stable", "string_disturbance_growth
 # the ISO 15622 column (on by default): the verdict (True / False / empty: not exercised or not run), the failed
 # requirements' names joined by ";", and the reason when the controller failed in the battery
 ISO15622_COLUMNS = ("iso15622_passed", "iso15622_failed", "iso15622_failed_to_run")
+# the wave column (on by default): the ratio of speed sds to the all-human ring's, of mean speeds, the collisions
+# on the controller's rings, and the reason when the controller failed in the column
+WAVE_COLUMNS = ("waves_ratio", "waves_speed_ratio", "waves_collisions", "waves_failed_to_run")
 #: table columns with an interval, and the summary figure they show
 INTERVALS = {"points": "mean_points", "score": "mean_score", "qualified": "share_qualified",
              "collisions_per_hour": "collisions_per_hour", "comfortable": "share_comfortable",
@@ -223,6 +226,11 @@ def table_rows(results: dict) -> list[dict]:
             row["iso15622_passed"] = cell.get("passed")
             row["iso15622_failed"] = ";".join(cell.get("failed") or []) if "passed" in cell else None
             row["iso15622_failed_to_run"] = cell.get("failed_to_run")
+        if _has_waves(results):
+            cell = c.get("waves") or {}
+            row["waves"] = c.get("waves")
+            for col in WAVE_COLUMNS:
+                row[col] = cell.get(col[len("waves_"):])
         vs = c.get("vs_above")
         row["vs_above"] = uncertainty.verdict(vs)
         row["vs_above_diff"] = vs["diff"] if vs else None
@@ -258,15 +266,20 @@ def _has_iso15622(results: dict) -> bool:
     return bool((results["manifest"].get("settings") or {}).get("iso15622"))
 
 
+def _has_waves(results: dict) -> bool:
+    return bool((results["manifest"].get("settings") or {}).get("waves"))
+
+
 def column_notes(results: dict) -> list[str]:
     """The lines under the ranking table: the sandbox's warning if there is one (strangers' code ran as
-    root, ``--allow-root``), then the optional columns that ran (string stability, ISO 15622)."""
-    from acc_gym.leaderboard import iso15622
+    root, ``--allow-root``), then the optional columns that ran (string stability, ISO 15622, waves)."""
+    from acc_gym.leaderboard import iso15622, waves
 
     warning = (results["manifest"].get("sandbox") or {}).get("warning")  # strangers' code ran as root
     return ([warning] if warning else []) + \
         ([string_stability_note(results)] if _has_string_stability(results) else []) + \
-        ([iso15622.note(results)] if _has_iso15622(results) else [])
+        ([iso15622.note(results)] if _has_iso15622(results) else []) + \
+        ([waves.note(results)] if _has_waves(results) else [])
 
 
 def _fmt(key: str, value) -> str:
@@ -284,6 +297,10 @@ def _fmt(key: str, value) -> str:
         from acc_gym.leaderboard.iso15622 import format_cell
 
         return format_cell(value)
+    if key == "waves":
+        from acc_gym.leaderboard.waves import format_cell as format_waves
+
+        return format_waves(value)
     if value is None:
         return "-"
     if key == "vs_above":
@@ -323,6 +340,10 @@ def display_columns(results: dict) -> list[tuple[str, str]]:
         from acc_gym.leaderboard.iso15622 import HEADER
 
         cols.append(("iso15622", HEADER))
+    if _has_waves(results):
+        from acc_gym.leaderboard.waves import HEADER as WAVES
+
+        cols.append(("waves", WAVES))
     return cols + [("episodes", "episodes"), ("wall_time_s", "time [s]")]
 
 
@@ -363,7 +384,7 @@ NAME_WIDTH = 28  # [characters] a longer controller name is shortened in the pri
 #: the printed table's columns: always these, then the optional ones while the table fits TEXT_WIDTH
 TEXT_COLUMNS = ("rank", "controller", "points", "vs_above", "score", "collisions", "preventable_collisions",
                 "min_ttc_s")
-TEXT_OPTIONAL = ("qualified", "suites", "string_stability", "iso15622", "risk", "wall_time_s", "comfortable",
+TEXT_OPTIONAL = ("qualified", "suites", "string_stability", "iso15622", "waves", "risk", "wall_time_s", "comfortable",
                  "safe_spacing", "max_jerk_mps3", "collisions_per_hour", "episodes")
 
 
@@ -467,7 +488,7 @@ def markdown(results: dict) -> str:
 def csv_text(results: dict) -> str:
     rows = table_rows(results)
     buf = io.StringIO()
-    nested = ("risk", "string_stability", "iso15622", "collisions_r157")  # as their numeric columns
+    nested = ("risk", "string_stability", "iso15622", "waves", "collisions_r157")  # as their numeric columns
     fields = [f for f in rows[0] if f not in nested] if rows else list(COLUMNS)
     writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
     writer.writeheader()

@@ -40,7 +40,7 @@ from datetime import datetime, timezone
 from importlib import metadata
 from pathlib import Path
 
-from acc_gym.leaderboard.isolation import IN_FLIGHT, START_METHOD, Job, run_isolated
+from acc_gym.leaderboard.isolation import IN_FLIGHT, START_METHOD, Columns, Job, run_isolated
 from acc_gym.leaderboard.results import (
     RANKING_RULE,
     json_safe,
@@ -232,6 +232,12 @@ def _platoon_settings() -> dict:
                     f"1 + {TOLERANCE:g}"}
 
 
+def _waves_settings(baseline) -> dict:
+    from acc_gym.leaderboard.waves import settings
+
+    return settings(baseline)
+
+
 def _iso15622_settings() -> dict:
     from acc_gym.leaderboard.iso15622 import settings
 
@@ -242,7 +248,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                     step_budget: float = DEFAULT_STEP_BUDGET, budget: float = DEFAULT_BUDGET,
                     episodes: int | None = None, report: bool = True, progress=None, sandbox: str = "process",
                     show=None, secret=None, risk: dict | None = None, string_stability: bool = True,
-                    iso15622: bool = True, allow_root: bool = False, limits=None, phase=None,
+                    iso15622: bool = True, waves: bool = True, allow_root: bool = False, limits=None, phase=None,
                     warm: bool = True, episode_progress=None) -> dict:
     """Score ``controllers`` on ``suites`` (names; default all) and rank them; returns the results dict.
 
@@ -275,8 +281,11 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     seconds each); the verdict goes into each controller's ``string_stability`` and a column.
     ``iso15622``: then each controller drives the ``iso15622-v1`` battery (30 episodes) in the same
     sandbox and ISO 15622's envelope is checked on its drives (:mod:`acc_gym.leaderboard.iso15622`;
-    a few seconds each); the cell goes into each controller's ``iso15622`` and a column. Neither
-    column changes points or ranks.
+    a few seconds each); the cell goes into each controller's ``iso15622`` and a column.
+    ``waves``: then each controller drives one vehicle of five rings of 22 human-like drivers
+    (:mod:`acc_gym.leaderboard.waves`; the all-human rings are run once, here, about 10 s; each
+    controller's about 5 s); the ratio of speed sds goes into each controller's ``waves`` and a
+    column. No column changes points or ranks.
     ``allow_root``: run strangers' code as root without a user id of its own (refused otherwise,
     :func:`acc_gym.leaderboard.sandbox.vet`); the reports then carry the warning.
     ``limits``: each controller's :class:`acc_gym.leaderboard.sandbox.Limits` (log, memory,
@@ -357,6 +366,13 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                 per_env[job.env_id] = per_env.get(job.env_id, 0) + 1
             warm_kernels({e: min(IN_FLIGHT, n) for e, n in per_env.items()}, processes=workers)
 
+        baseline = None
+        if waves:
+            from acc_gym.leaderboard.waves import human_baseline
+
+            if phase is not None:
+                phase("waves", None)
+            baseline = human_baseline()  # trusted code, once: every controller's cell divides by it
         if phase is not None:
             phase("controllers", None)
 
@@ -370,7 +386,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                                 budget=budget, traces=traces, progress=None if progress is None else told,
                                 episode_progress=None if episode_progress is None else ticked,
                                 log_dir=logs, uids=uids, sandbox=sandbox,
-                                platoon=bool(string_stability), iso15622=bool(iso15622))
+                                columns=Columns(platoon=bool(string_stability), iso15622=bool(iso15622),
+                                                waves=baseline))
     except BaseException:
         if staging is not None:
             shutil.rmtree(staging, ignore_errors=True)
@@ -401,7 +418,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                         "summary": summarise_controller(o.episodes, names) if o.status == "ok" else None,
                         "episodes": o.episodes, **({"risk": risks.get(ref)} if risk is not None else {}),
                         **({"string_stability": o.string_stability} if string_stability else {}),
-                        **({"iso15622": o.iso15622} if iso15622 else {})})
+                        **({"iso15622": o.iso15622} if iso15622 else {}),
+                        **({"waves": o.waves} if waves else {})})
     ranking = rank(entries)
     manifest = {
         "format": "acc_gym.leaderboard/1", "created": created, "versions": versions(),
@@ -411,7 +429,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
         "settings": {"workers": workers, "step_budget_s": step_budget, "budget_s": budget,
                      "start_method": START_METHOD, "in_flight": IN_FLIGHT, "risk": risk,
                      "string_stability": _platoon_settings() if string_stability else None,
-                     "iso15622": _iso15622_settings() if iso15622 else None},
+                     "iso15622": _iso15622_settings() if iso15622 else None,
+                     "waves": _waves_settings(baseline) if waves else None},
         "sandbox": sandbox_info, "ranking_rule": RANKING_RULE,
         "results_key_id": None if key is None else signature({}, key)["key_id"],
         "timings": {"total_wall_s": time.monotonic() - t0,

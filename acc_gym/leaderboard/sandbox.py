@@ -8,7 +8,7 @@ its end of a socket; it receives observations and answers actions
 controller, made before its first call and ``reset()`` at every episode start, and it
 is called with that episode's single observation row, exactly as
 :func:`acc_gym.evaluation.runner.run_episode` calls it -- so a controller's episodes
-are the same bits here as under ``acc-gym evaluate``. (The string-stability column sends
+are exactly the same here as under ``acc-gym evaluate``. (The string-stability column sends
 one position's rows of every frequency under one slot: a vectorised controller's copy
 answers them in one call, as ``acc-gym string-stability`` calls it, any other gets a
 copy per row.)

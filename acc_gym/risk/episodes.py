@@ -33,11 +33,11 @@ competent driver (the built-in ``cc-driver``, loaded afresh by name) -- the same
 rows of a second, fresh :class:`~acc_gym.leaderboard.batch.BatchRuns` -- and each record
 says whether the collision was ``preventable`` (the C&C driver does not collide). Decided:
 batched, not one :func:`acc_gym.standards.r157.collides` per episode -- the same verdicts
-(the batch equals single environments bit for bit; ``tests/risk/test_preventable.py``
-checks it) at about a tenth of the cost, which keeps the re-drive cheap when most of an
-importance-sampling round collides. Only collided episodes are re-driven. The controller
-takes no part in the re-drive: its only say in the verdict is its own driving (whether it
-collided). Run in-process, its code shares the process with the re-drive, as it shares it
+(a batch's rows step exactly as single environments do; ``tests/risk/test_preventable.py``
+checks the verdicts against single environments) at about a tenth of the cost, which
+keeps the re-drive cheap when most of an importance-sampling round collides. Only
+collided episodes are re-driven. The controller takes no part in the re-drive: its only
+say in the verdict is its own driving (whether it collided). Run in-process, its code shares the process with the re-drive, as it shares it
 with the simulator -- the in-process tool trusts the controller it is given; for a
 stranger's controller use the leaderboard's isolation (:mod:`acc_gym.risk.isolated`), where
 the re-drive happens in the trusted simulation process.

@@ -20,12 +20,12 @@ run (the leaderboard's suites use several seeds as "several drivers"):
 * emergency stop: braking at ``brake_decel`` from the limit so that the BV's front bumper
   stops ``stop_margin`` before the road's end, then standing for ``hold`` seconds.
 
-``carfollowing/varied`` (not in the paper; the ``-v1`` CarFollowing id trains on it, issue
-33) is the same test drawn wider: a speed limit anywhere in 40-130 km/h, a final stop
+``carfollowing/varied`` (not in the paper; the ``-v1`` CarFollowing id trains on it) is
+the same test drawn wider: a speed limit anywhere in 40-130 km/h, a final stop
 braking at 2-8 m/s^2 (gentle to emergency) and a road of 1.5-3 km (so that the faster
 runs have room to cruise and dip).
 
-``carfollowing/emergency`` (not in the paper; for training and diagnosis, acc-gym 0.18.0) is
+``carfollowing/emergency`` (not in the paper; for training and diagnosis) is
 the final stop alone: the ego follows the lead at ``speed_limit`` (40-130 km/h), ``headway``
 1-3 s behind (bumper gap over the ego's speed) and ``v_rel`` (lead minus ego, within
 +-2 m/s) slower or faster; after ``t_brake`` (1-6 s) the lead brakes at ``brake_decel``
@@ -133,7 +133,7 @@ for _kmh in SPEEDS_KMH:
         _build, positive=_POSITIVE, nonnegative=frozenset({"hold"}), units=_UNITS))
 
 
-# --- varied car-following for training (issue 33): not in the paper ---------------------------
+# --- varied car-following for training: not in the paper -------------------------------------
 
 register(ScenarioType(
     "carfollowing/varied", "carfollowing",

@@ -199,16 +199,15 @@ def actions_to_accel(actions: np.ndarray, accel_max: float, decel_max: float) ->
 
 
 class _Controllers:
-    """The controller under test at the controlled cells of a batch of rings: the string-stability
-    measurement's adapter (:class:`~acc_gym.evaluation.string_stability._Copies`) fed the
-    environments' observation (:class:`RingSensors`)."""
+    """The controller under test at the controlled cells of a batch of rings: ``actors(cells)``
+    (the string-stability measurement's adapter, :class:`~acc_gym.evaluation.string_stability._Copies`
+    for a controller in this process, :class:`~acc_gym.evaluation.string_stability.Remote` for one in
+    the leaderboard's sandbox) fed the environments' observation (:class:`RingSensors`)."""
 
-    def __init__(self, controller, cells: np.ndarray, *, set_speed: float, time_gap: float, sensor_range: float,
+    def __init__(self, actors, cells: np.ndarray, *, set_speed: float, time_gap: float, sensor_range: float,
                  version: int, accel_max: float, decel_max: float):
-        from acc_gym.evaluation.string_stability import _Copies
-
         self.cells = cells
-        self.copies = _Copies(controller, cells)
+        self.copies = actors(cells)
         self.sensors = RingSensors(cells, set_speed=set_speed, time_gap=time_gap, sensor_range=sensor_range,
                                    version=version)
         self.accel_max, self.decel_max = float(accel_max), float(decel_max)
@@ -453,7 +452,7 @@ def simulate_ring(length: float, vehicles: int, *, layout=None, drivers: str = "
                   controller=None, models: dict | None = None, vehicle: VehicleParams | None = None,
                   set_speed: float | None = None, time_gap: float = 1.5, sensor_range: float = 200.0,
                   version: int = 0, accel_max: float = 3.0, decel_max: float = 8.0,
-                  driver_model: int = MODEL_VERSION) -> RingTrace:
+                  driver_model: int = MODEL_VERSION, actors=None, standins: bool = False) -> RingTrace:
     """Simulate ``len(seeds)`` rings of ``vehicles`` vehicles on a closed lane of ``length`` [m]
     for ``duration`` [s] at steps of ``dt`` [s] (see the module docstring): a :class:`RingWorld`
     stepped ``duration / dt`` times, the controller under test at its controlled cells.
@@ -469,6 +468,11 @@ def simulate_ring(length: float, vehicles: int, *, layout=None, drivers: str = "
     x0: initial positions along the ring [m] ``(N,)`` or ``(R, N)``, in driving order (each
         vehicle behind the one before it; default evenly spaced).
     controller: the controller under test (an object with ``predict``), if the layout has one.
+    actors: instead of ``controller``, ``actors(cells)`` makes the controller's side for the
+        controlled cells (the string-stability measurement's interface: the leaderboard's
+        sandboxed controller, :func:`acc_gym.evaluation.string_stability.remote_actors`).
+    standins: give the controlled positions human stand-ins (:class:`RingWorld`); with neither
+        ``controller`` nor ``actors`` they drive there: the all-human ring with the same humans.
     models: baseline parameters by model name (e.g. ``{"idm": IDMParams(...)}``).
     vehicle: every vehicle's parameters (scalars: the default car).
     set_speed, time_gap, sensor_range, version, accel_max, decel_max: the controller's
@@ -480,15 +484,21 @@ def simulate_ring(length: float, vehicles: int, *, layout=None, drivers: str = "
     """
     if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be a finite number > 0, got {duration!r}")
+    if controller is not None and actors is not None:
+        raise ValueError("give the controller or its actors, not both")
     world = RingWorld(length, vehicles, layout=layout, drivers=drivers, seeds=seeds, dt=dt, v_desired=v_desired,
-                      models=models, vehicle=vehicle, driver_model=driver_model)
-    if len(world.cells) and controller is None:
+                      models=models, vehicle=vehicle, driver_model=driver_model, standins=standins)
+    if controller is not None:
+        from acc_gym.evaluation.string_stability import _Copies
+
+        actors = lambda cells: _Copies(controller, cells)  # noqa: E731
+    if len(world.cells) and actors is None and not standins:
         raise ValueError("the layout has controlled positions but no controller was given")
     world.reset(v0=v0, x0=x0)
     R, N, dt = world.rings, world.vehicles, world.dt
     ctl = None
-    if len(world.cells):
-        ctl = _Controllers(controller, world.cells, set_speed=world.v_desired if set_speed is None else float(set_speed),
+    if len(world.cells) and actors is not None:
+        ctl = _Controllers(actors, world.cells, set_speed=world.v_desired if set_speed is None else float(set_speed),
                            time_gap=time_gap, sensor_range=sensor_range, version=version, accel_max=accel_max,
                            decel_max=decel_max)
     T = int(round(float(duration) / dt))

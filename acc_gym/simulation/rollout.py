@@ -10,7 +10,7 @@ accelerations at the start of the step), then every vehicle moves (exact integra
 no reversing; :mod:`acc_gym.vehicle`). So the order of the models never matters.
 
 Two paths give the same numbers (``tests/simulation/test_column_kernel.py``: equal to the
-per-follower loop, bit for bit on the runs tested):
+per-follower loop within 1e-12):
 
 * a column whose followers are all baseline models (IDM, Gipps, ..., ACC:
   :meth:`~acc_gym.drivers.baselines._Model.compiled_law`) runs in one compiled call for the

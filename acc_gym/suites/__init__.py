@@ -49,19 +49,14 @@ different benchmark. To make a new version, add a suite with a new name, run
 ``python -m acc_gym.suites.generate NAME`` (it writes the file atomically and prints the
 hash) and add that hash to :data:`PINNED`; a released entry never changes.
 
-**Retired: singlelane-v1 and malicious-v1** (acc-gym 0.5.0). Their episodes' content
-digests include the surrounding MPC drivers' sampled parameters, and driver model 3
-samples the distance weight differently (:mod:`acc_gym.drivers.population`), so their
-episodes no longer build to what v1 recorded. They were not re-pinned in place: the
-same (id, params, seed) list under new seeds is ``singlelane-v2`` / ``malicious-v2``.
-Results on v1 (acc-gym <= 0.4.0) are not comparable with results on v2.
-
-**Retired: singlelane-v2 and malicious-v2** (acc-gym 0.7.0), for the same reason: driver
-model 5 draws the surrounding drivers' distance weight from [0.02, 2.8] instead of [0.04,
-2.8] (issue 37), so their episodes no longer build to what v2 recorded. The same lists
-under new seeds are ``singlelane-v3`` / ``malicious-v3``; carfollowing-v1 and ncap-v1 hold
-no sampled MPC driver and are unchanged. Asking for a retired suite names its successor
-(:data:`RETIRED`).
+**Retired suites** (:data:`RETIRED`): singlelane-v1, malicious-v1, singlelane-v2 and
+malicious-v2. Their episodes' content digests include the surrounding MPC drivers' sampled
+parameters, and the current driver model samples the distance weight differently
+(:mod:`acc_gym.drivers.population`), so their episodes no longer build to what they
+recorded. They were not re-pinned in place: the same (id, params, seed) lists under new
+seeds are ``singlelane-v3`` / ``malicious-v3``, and results on the retired suites are not
+comparable with results on those. carfollowing-v1 and ncap-v1 hold no sampled MPC driver.
+Asking for a retired suite names its successor; ``CHANGELOG.md`` says when each was retired.
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ values and :meth:`Suite.episodes` builds from them, never re-deriving them. Deci
 rounding of a double is exact and platform-independent in Python (``round`` is correctly
 rounded), so regenerating a suite on any machine gives byte-identical data, unless a
 drawn value lies within a last-bit difference of a rounding boundary (a chance of about
-1e-8 per value, ~1e-5 per suite). What is *not* bit-identical across machines: what the
+1e-8 per value, ~1e-5 per suite). What is *not* exactly the same on every machine: what the
 episode's build derives from the seed (the surrounding drivers' sampled parameters, a
 lead's speed profile) and the simulation itself (compiled code may fuse multiply-adds
 differently), so trajectories and scores are reproducible to a tolerance (measured in

@@ -25,7 +25,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / "README.md"
-LB_QUICK = " --episodes 1 --no-string-stability --no-iso15622"
+LB_QUICK = " --episodes 1 --no-string-stability --no-iso15622 --no-waves"
 # command as written in the README (comment stripped) -> what is appended to run it quickly
 QUICK = {
     "acc-gym leaderboard": LB_QUICK + " --controllers acc constant",

@@ -23,7 +23,7 @@ def board(tmp_path_factory):
     with pytest.MonkeyPatch.context() as mp:
         mp.syspath_prepend(str(HERE))
         results = run_leaderboard("ncap-v1", "test", ["acc", "idm", FAILS], out=out, episodes=1, workers=2,
-                                  allow_root=True, string_stability=False, report=True)
+                                  allow_root=True, string_stability=False, report=True, waves=False)
     return results, out
 
 
@@ -88,7 +88,7 @@ def test_csv_and_tables_show_the_column(board, local):
 def test_the_column_changes_no_points_or_rank(board):
     results, _ = board
     plain = run_leaderboard("ncap-v1", "test", ["acc", "idm"], episodes=1, workers=2, string_stability=False,
-                            allow_root=True, iso15622=False)
+                            allow_root=True, iso15622=False, waves=False)
     assert plain["ranking"] == [n for n in results["ranking"] if n != FAILS]
     for name in ("acc", "idm"):
         a, b = entry(plain, name), entry(results, name)
@@ -121,3 +121,5 @@ def test_after_a_failure_in_the_string_stability_column_the_battery_runs_on_a_fr
     c = entry(results, name)
     assert c["status"] == "ok" and "deliberate failure on a batch" in c["string_stability"]["failed"]
     assert c["iso15622"] == expected
+    # the wave column sends the five rings' rows of its one position at once: it fails there too, on its own
+    assert "deliberate failure on a batch" in c["waves"]["failed_to_run"] and "the wave column" in c["waves"]["failed_to_run"]

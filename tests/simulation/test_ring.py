@@ -114,7 +114,7 @@ def test_cli_json_has_the_issue_keys_and_trace_columns(tmp_path, capsys):
     import json
 
     from acc_gym.cli import main
-    from acc_gym.simulation.ring_cli import JSON_KEYS
+    from acc_gym.commands.ring import JSON_KEYS
 
     path = tmp_path / "ring.csv"
     assert main(["ring", "acc", "--vehicles", "6", "--length", "80", "--duration", "20", "--warmup", "5",

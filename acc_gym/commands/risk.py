@@ -15,7 +15,7 @@ import json
 import math
 import os
 
-from acc_gym._cli_args import number_params
+from acc_gym.commands._args import number_params
 from acc_gym.risk.episodes import CHUNK
 from acc_gym.risk.run import EVENTS, FAMILIES, RiskResult, estimate_risk
 

@@ -8,7 +8,7 @@ import json
 
 import numpy as np
 
-from acc_gym._cli_args import number_params
+from acc_gym.commands._args import number_params
 from acc_gym.drivers.mpc import DRIVER_MODELS, MODEL_VERSION
 from acc_gym.evaluation import waves as W
 from acc_gym.simulation import ring as R

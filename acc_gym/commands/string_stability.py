@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import json
 
-from acc_gym._cli_args import number_params
+from acc_gym.commands._args import number_params
+from acc_gym.drivers.mpc import DRIVER_MODELS, ENV_DRIVER_MODEL
 from acc_gym.evaluation import string_stability as ss
 
 
@@ -27,6 +28,9 @@ def add_parser(sub) -> None:
                         "(default 1)")
     p.add_argument("--drivers", default="typical", help="the human drivers' population (typical, atypical, "
                                                         "naturalistic, malicious)")
+    p.add_argument("--driver-model", type=int, default=ENV_DRIVER_MODEL, choices=sorted(DRIVER_MODELS),
+                   help="the human drivers' model version (default %d, the environments'; 6 adds a 1.0 s reaction "
+                        "time with anticipation, a reflex and a following rule)" % ENV_DRIVER_MODEL)
     p.add_argument("--seed", type=int, default=0, help="the human drivers' draw (and the stop-and-go trace's)")
     p.add_argument("--frequencies", type=float, nargs="+", default=None, metavar="HZ",
                    help="the sweep's frequencies [Hz] (default: 25 from 0.005 to 1, log-spaced)")
@@ -57,7 +61,7 @@ def run(args, parser) -> int:
                 parser.error(f"--param needs a registered controller name; {args.controller!r} is not one")
         config = ss.PlatoonConfig(vehicles=args.vehicles, speed=args.speed, set_speed=args.set_speed,
                                   time_gap=args.time_gap, penetration=args.penetration, drivers=args.drivers,
-                                  seed=args.seed, v2v=args.v2v)
+                                  seed=args.seed, v2v=args.v2v, driver_model=args.driver_model)
         trace = None if args.lead_trace is None else ss.lead_trace(args.lead_trace, args.seed)
         report = ss.string_stability(controller, config, frequencies=args.frequencies,
                                      disturbance=not args.no_disturbance, trace=trace, name=args.controller)
