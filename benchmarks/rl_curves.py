@@ -316,7 +316,9 @@ def ring_curve(algo: str, env_id: str, seed: int, runs: Path, heldout: int | Non
 
         fs = FollowerStopper()
         seeds = range(int(heldout), int(heldout) + _episodes(heldout_episodes, env_id))
-        entry["heldout"] = ring_compare(env_id, seeds, {algo: act, "follower-stopper": lambda o: fs.predict(o)[0]})
+        # the policies are compared on the env they were trained on (its env_kwargs: connected=True's observation)
+        entry["heldout"] = ring_compare(env_id, seeds, {algo: act, "follower-stopper": lambda o: fs.predict(o)[0]},
+                                        **tuned["env_kwargs"])
     return entry
 
 

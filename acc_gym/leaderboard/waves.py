@@ -128,4 +128,4 @@ def note(results: dict) -> str:
     return (f"{HEADER}: one vehicle of {st['vehicles']} on a {st['length']:g} m ring of {st['drivers']} human-like "
             f"drivers (driver model {st['driver_model']}), {st['duration_s']:g} s from a standing start on seeds "
             f"{', '.join(map(str, st['seeds']))}; the speed sd after {st['warmup_s']:g} s over the all-human ring's "
-            f"(below 1 damps the wave; acc-gym ring CONTROLLER --length 260); not part of the points or the rank")
+            f"(below 1 damps the wave; acc-gym ring CONTROLLER --length 260 --duration 360 --seed S); not part of the points or the rank")
