@@ -86,6 +86,7 @@ def curve(algo: str, env_id: str, seed: int, runs: Path, eval_freq: int | None, 
              "eval_seed": manifest["eval_seed"], "eval_episodes": manifest["eval_episodes"],
              "steps": [e["timesteps"] for e in evals], "mean_score": scores,
              "share_qualified": [e["share_qualified"] for e in evals], "collisions": [e["collisions"] for e in evals],
+             "wall_time_s": [e.get("wall_time_s") for e in evals],  # [s] of training at each checkpoint
              "last_mean_score": scores[-1], "best_mean_score": max(scores),
              "last_within_5_of_best": max(scores) - scores[-1] <= 5.0,
              "train_wall_time_s": manifest["train_wall_time_s"]}
@@ -139,9 +140,50 @@ def twin_curve(entry: dict, twin_env: str, runs: Path) -> dict:
     return twin
 
 
+BOOTSTRAP_RESAMPLES = 2000
+BOOTSTRAP_SEED = 20261202  # the intervals' own generator (numpy SeedSequence), fixed: the table is reproducible
+
+
+def iqm(values) -> float:
+    """The interquartile mean: the mean after dropping the lowest and highest quarter of the
+    values (``floor(n / 4)`` from each end, as ``scipy.stats.trim_mean(x, 0.25)`` and
+    rliable's IQM; with 3 seeds nothing is dropped and it is their mean)."""
+    import numpy as np
+
+    x = np.sort(np.asarray(values, dtype=float))
+    cut = len(x) // 4
+    return float(x[cut:len(x) - cut].mean())
+
+
+def iqm_interval(values, level: float = 0.95, resamples: int = BOOTSTRAP_RESAMPLES) -> tuple[float, float]:
+    """The percentile bootstrap interval of :func:`iqm` over seeds (rliable's, one task): the
+    seeds resampled with replacement ``resamples`` times, a generator seeded with
+    :data:`BOOTSTRAP_SEED`. With a handful of seeds it is wide, which is the point."""
+    import numpy as np
+
+    x = np.asarray(values, dtype=float)
+    rng = np.random.default_rng(np.random.SeedSequence(BOOTSTRAP_SEED))
+    draws = np.sort(x[rng.integers(0, len(x), size=(resamples, len(x)))], axis=1)
+    cut = len(x) // 4
+    stats = draws[:, cut:len(x) - cut].mean(axis=1)
+    lo, hi = np.quantile(stats, [(1 - level) / 2, (1 + level) / 2])
+    return float(lo), float(hi)
+
+
+def wall_times(c: dict) -> list[float]:
+    """A curve's training wall time [s] at each checkpoint: recorded by ``acc-gym train``
+    (evaluations excluded) since acc-gym 0.27.0; for older runs, which kept only the total,
+    that total spread linearly over the steps."""
+    recorded = c.get("wall_time_s") or []
+    if recorded and all(t is not None for t in recorded):
+        return [float(t) for t in recorded]
+    return [c["train_wall_time_s"] * s / c["steps"][-1] for s in c["steps"]]
+
+
 def table(data: dict) -> str:
     """Markdown: every run's last / best checkpoint and its held-out results on each scored id,
-    then per algorithm and id the median and min-max over seeds (what the README shows)."""
+    then per algorithm and id over seeds the median and min-max (what the README shows) and the
+    interquartile mean with its 95 % bootstrap interval (:func:`iqm`, :func:`iqm_interval`)."""
     import statistics
 
     rows = ["| algo | trained for | seed | last / best checkpoint | held-out on | qualified | mean score | collisions |",
@@ -156,10 +198,13 @@ def table(data: dict) -> str:
                         f"{c['best_mean_score']:.1f} | {on.split('/')[-1]} ({h['episodes']} ep.) | "
                         f"{100 * h['share_qualified']:.0f} % | {h['mean_score']:.1f} | {h['collisions']} |")
             spread.setdefault((c["algo"], c["env_id"], on), []).append(h["share_qualified"])
-    rows += ["", "| algo | trained for | held-out on | seeds | qualified: median (min-max) |", "|---|---|---|---:|---|"]
+    rows += ["", "| algo | trained for | held-out on | seeds | qualified: median (min-max) | IQM [95 % bootstrap] |",
+             "|---|---|---|---:|---|---|"]
     for (algo, env_id, on), q in sorted(spread.items()):
+        lo, hi = iqm_interval(q)
         rows.append(f"| {algo} | {env_id.split('/')[-1]} | {on.split('/')[-1]} | {len(q)} | "
-                    f"{100 * statistics.median(q):.0f} % ({100 * min(q):.0f}-{100 * max(q):.0f} %) |")
+                    f"{100 * statistics.median(q):.0f} % ({100 * min(q):.0f}-{100 * max(q):.0f} %) | "
+                    f"{100 * iqm(q):.0f} % [{100 * lo:.0f}, {100 * hi:.0f}] |")
     return "\n".join(rows)
 
 
@@ -345,6 +390,10 @@ def _curve_job(kwargs: dict) -> dict:
 
 
 def plot(data: dict, png: Path) -> None:
+    """Per env id (columns): the mean score and the share qualified against training steps,
+    and the share qualified against training wall time (:func:`wall_times`); every seed thin,
+    and where the seeds share their checkpoints the IQM over seeds with its 95 % bootstrap band
+    (:func:`iqm`, :func:`iqm_interval`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -353,28 +402,35 @@ def plot(data: dict, png: Path) -> None:
     import numpy as np
 
     envs = sorted({c["env_id"] for c in data["curves"]})
-    fig, axes = plt.subplots(2, len(envs), figsize=(5.5 * len(envs), 6.5), squeeze=False, sharex="col")
-    colours = {"ppo": "tab:blue", "sac": "tab:red", "td3": "tab:green"}
+    fig, axes = plt.subplots(3, len(envs), figsize=(5.5 * len(envs), 9.5), squeeze=False)
+    colours = {"ppo": "tab:blue", "sac": "tab:red", "td3": "tab:green", "tqc": "tab:purple", "crossq": "tab:orange"}
+    panels = ((0, "mean_score", 1.0, "steps"), (1, "share_qualified", 100.0, "steps"),
+              (2, "share_qualified", 100.0, "wall"))
     for j, env_id in enumerate(envs):
         for algo in sorted({c["algo"] for c in data["curves"] if c["env_id"] == env_id}):
             runs = [c for c in data["curves"] if c["env_id"] == env_id and c["algo"] == algo]
             colour = colours.get(algo, "k")
-            for row, key, scale in ((0, "mean_score", 1.0), (1, "share_qualified", 100.0)):
+            for row, key, scale, axis in panels:
                 ax = axes[row, j]
-                for c in runs:  # every seed, thin
-                    ax.plot(c["steps"], [scale * y for y in c[key]], color=colour, lw=0.6, alpha=0.45)
-                if len({tuple(c["steps"]) for c in runs}) == 1:  # the median and the min-max band over seeds
+                xs = [c["steps"] if axis == "steps" else wall_times(c) for c in runs]
+                for c, x in zip(runs, xs):  # every seed, thin
+                    ax.plot(x, [scale * y for y in c[key]], color=colour, lw=0.6, alpha=0.45)
+                if len({tuple(c["steps"]) for c in runs}) == 1:  # the IQM and its bootstrap band over seeds
                     y = scale * np.array([c[key] for c in runs])
-                    ax.fill_between(runs[0]["steps"], y.min(0), y.max(0), color=colour, alpha=0.15)
-                    ax.plot(runs[0]["steps"], np.median(y, 0), color=colour, lw=2,
-                            label=f"{algo}: median of {len(runs)} seeds (band: min-max)" if row == 0 else None)
+                    x = runs[0]["steps"] if axis == "steps" else np.median(np.array(xs), 0)
+                    band = np.array([iqm_interval(col) for col in y.T])
+                    ax.fill_between(x, band[:, 0], band[:, 1], color=colour, alpha=0.15)
+                    ax.plot(x, [iqm(col) for col in y.T], color=colour, lw=2,
+                            label=f"{algo}: IQM of {len(runs)} seeds (band: 95 % bootstrap)" if row == 0 else None)
         axes[0, j].set_title(env_id)
         axes[0, j].set_ylabel("mean score (deterministic)")
         axes[1, j].set_ylabel("qualified [%]")
+        axes[2, j].set_ylabel("qualified [%]")
         axes[1, j].set_xlabel("training steps")
-        axes[1, j].set_xscale("log")
-        for ax in axes[:, j]:
-            ax.grid(alpha=0.3)
+        axes[2, j].set_xlabel("training wall time [s] (median over seeds)")
+        for row in range(3):
+            axes[row, j].set_xscale("log")
+            axes[row, j].grid(alpha=0.3)
         axes[0, j].legend(fontsize=7)
     fig.tight_layout()
     from acc_gym.plotting import save_figure
@@ -385,7 +441,7 @@ def plot(data: dict, png: Path) -> None:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--algos", nargs="+", default=["ppo", "sac"])
+    ap.add_argument("--algos", nargs="+", default=["ppo", "sac"], help="any of ppo, sac, td3, tqc, crossq")
     ap.add_argument("--envs", nargs="+", default=["acc_gym/CarFollowing-v0", "acc_gym/SingleLane-v0"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     ap.add_argument("--runs", default="rl_curves_runs", help="directory of the run directories")

@@ -13,7 +13,8 @@ class _Train:
     @staticmethod
     def add_parser(sub) -> None:
         p_tr = sub.add_parser("train", help="train an ACC policy with stable-baselines3 (needs the rl extra)")
-        p_tr.add_argument("algo", choices=["ppo", "sac", "td3"])
+        p_tr.add_argument("algo", choices=["ppo", "sac", "td3", "tqc", "crossq"],
+                          help="the algorithm (tqc and crossq: sb3-contrib's)")
         p_tr.add_argument("--env", default="acc_gym/CarFollowing-v0",
                           help="an environment id, plain (acc_gym/CarFollowing-v0) or module-qualified "
                                "(acc_gym:acc_gym/CarFollowing-v0, the form subprocess workers need)")

@@ -16,7 +16,8 @@ unsquashed Gaussian policies are supported (SAC and TD3 squash with tanh and kee
 actor elsewhere): exporting anything else is an error, not an approximation.
 
 The numpy forward pass runs in float32 like torch's; the two differ by rounding only
-(about 1e-7 on an action, tested against the torch model).
+(about 1e-7 on an action, tested against the torch model). An observation's action is the
+same to the bit whether it comes alone or in a batch (:func:`_layer`).
 """
 
 from __future__ import annotations
@@ -30,6 +31,14 @@ from acc_gym._io import atomic_write
 
 POLICY_FILE = "policy.npz"
 ACTIVATIONS = ("tanh", "relu")
+
+
+def _layer(x: np.ndarray, w: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``x @ w.T + b`` with each row's sums in an order that does not depend on how many rows
+    come with it: numpy's own einsum loop, not BLAS (whose kernels for one row and for many
+    differ, so that on some CPUs an observation scored alone and the same observation in a
+    batch gave actions 2e-7 apart, and a leaderboard score depended on its batch)."""
+    return np.einsum("ij,kj->ik", x, w, optimize=False) + b
 
 
 def _activate(name: str, x: np.ndarray) -> np.ndarray:
@@ -77,8 +86,8 @@ class NumpyActor:
         if x.shape[1] != self.obs_dim:
             raise ValueError(f"observation of shape {np.shape(obs)}; this actor takes {self.obs_dim} values")
         for w, b, name in zip(self.weights[:-1], self.biases[:-1], self.activations):
-            x = _activate(name, x @ w.T + b)
-        action = np.clip(x @ self.weights[-1].T + self.biases[-1], self.low, self.high)
+            x = _activate(name, _layer(x, w, b))
+        action = np.clip(_layer(x, self.weights[-1], self.biases[-1]), self.low, self.high)
         return (action[0] if single else action), None
 
     def save(self, path) -> Path:

@@ -26,10 +26,24 @@ import numpy as np
 
 from acc_gym_agents.rl.residual_law import check_overspeed, check_scale, check_shield, controller_action, make_base
 
-ALGOS = ("ppo", "sac", "td3")
+ALGOS = ("ppo", "sac", "td3", "tqc", "crossq")  # tqc, crossq: sb3-contrib's
 MODEL_FILE = "model.zip"
 RMS_FILE = "obs_rms.npz"
 MANIFEST_FILE = "manifest.json"
+
+
+def algorithm_class(algo: str):
+    """The stable-baselines3 (``ppo``, ``sac``, ``td3``) or sb3-contrib (``tqc``, ``crossq``)
+    class of ``algo``; ValueError naming an unknown one."""
+    if algo not in ALGOS:
+        raise ValueError(f"unknown algorithm {algo!r}; use one of {', '.join(ALGOS)}")
+    if algo in ("tqc", "crossq"):
+        import sb3_contrib
+
+        return {"tqc": sb3_contrib.TQC, "crossq": sb3_contrib.CrossQ}[algo]
+    import stable_baselines3 as sb3
+
+    return {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[algo]
 
 
 class SB3Policy:
@@ -127,10 +141,7 @@ def load_policy(path, backend: str | None = None) -> SB3Policy:
             raise ValueError(f"{run}: no {POLICY_FILE}; export it with acc_gym_agents.rl.mlp.export({str(run)!r})")
         model = NumpyActor.load(run / POLICY_FILE)
     else:
-        import stable_baselines3 as sb3
-
-        cls = {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[manifest["algo"]]
-        model = cls.load(str(path if path.suffix == ".zip" else run / MODEL_FILE), device="cpu")
+        model = algorithm_class(manifest["algo"]).load(str(path if path.suffix == ".zip" else run / MODEL_FILE), device="cpu")
     rms = np.load(run / RMS_FILE)
     residual = manifest.get("residual")
     return SB3Policy(model, rms["mean"], rms["var"], float(rms["clip"]), residual=residual,

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from acc_gym._io import atomic_write
-from acc_gym_agents.rl.policy import ALGOS, MANIFEST_FILE, MODEL_FILE, RMS_FILE, SB3Policy, sensor_range_of
+from acc_gym_agents.rl.policy import ALGOS, MANIFEST_FILE, algorithm_class, MODEL_FILE, RMS_FILE, SB3Policy, sensor_range_of
 
 EVAL_SEED_OFFSET = 1_000_003
 
@@ -51,7 +51,7 @@ def _save_model(model, path: Path) -> None:
 
 def _versions() -> dict:
     out = {"python": platform.python_version()}
-    for pkg in ("acc-gym", "stable-baselines3", "torch", "gymnasium", "numpy"):
+    for pkg in ("acc-gym", "stable-baselines3", "sb3-contrib", "torch", "gymnasium", "numpy"):
         try:
             out[pkg] = version(pkg)
         except PackageNotFoundError:
@@ -117,7 +117,7 @@ def train(algo: str, env_id: str = "acc_gym/CarFollowing-v0", timesteps: int | N
           residual_kwargs: dict | None = None, max_overspeed: float | None = None, score_bonus: float = 0.0,
           mix: dict | None = None, train_scoring: dict | None = None, torch_threads: int | None = 1,
           **env_settings) -> Path:
-    """Train ``algo`` (``ppo``, ``sac``, ``td3``) and write the run directory; returns its path.
+    """Train ``algo`` (``ppo``, ``sac``, ``td3``, or sb3-contrib's ``tqc`` and ``crossq``) and write the run directory; returns its path.
 
     Tuned defaults: a plain run (``algo_kwargs`` None and no ``residual``) of an algorithm and
     environment id with an entry in ``acc_gym_agents/rl/hyperparams/<algo>.yml`` (rl-zoo3's
@@ -172,7 +172,6 @@ def _train(algo: str, env_id: str, timesteps, seed, out, num_envs, eval_freq, ev
     """:func:`train`'s body, on the torch threads it set; ``progress``: the
     :class:`~acc_gym._progress.ProgressBar` it advances (timesteps, and what it is doing)."""
     import gymnasium as gym
-    import stable_baselines3 as sb3
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
@@ -233,12 +232,13 @@ def _train(algo: str, env_id: str, timesteps, seed, out, num_envs, eval_freq, ev
 
     norm = normalize_settings((algo_kwargs or {}).get("normalize"), (algo_kwargs or {}).get("gamma", 0.99))
     venv = VecNormalize(raw, norm_obs=True, **norm)  # clip_obs: the entry's, else 10 (normalize_settings)
-    cls = {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3}[algo]
+    cls = algorithm_class(algo)
     from acc_gym_agents.rl.hyperparams import to_sb3
 
     model = cls("MlpPolicy", venv, seed=int(seed), device="cpu", verbose=0, **to_sb3(algo_kwargs or {}))
     eval_freq = int(eval_freq) if eval_freq else max(int(timesteps) // 5, 1)
     evaluations: list[dict] = []
+    clock = {"start": time.time(), "evaluating": 0.0}  # [s]; reset when learning starts
 
     def run_eval(step: int, actor=None) -> dict:
         progress.update(description=f"train {algo}: evaluating ({eval_episodes} episodes)")
@@ -247,9 +247,12 @@ def _train(algo: str, env_id: str, timesteps, seed, out, num_envs, eval_freq, ev
                            residual_scale=residual_scale if residual is not None else None, shield=shield,
                            residual_kwargs=residual_kwargs, max_overspeed=max_overspeed,
                            sensor_range=sensor_range_of({"train_env_settings": train_settings}))
+        trained_for = time.time() - clock["start"] - clock["evaluating"]  # [s] of training, evaluations excluded
+        started = time.time()
         summary = evaluate(policy, env_id, episodes=eval_episodes, seed=int(seed) + EVAL_SEED_OFFSET, **env_settings)
+        clock["evaluating"] += time.time() - started
         entry = {"timesteps": step, "mean_score": summary["mean_score"], "share_qualified": summary["share_qualified"],
-                 "collisions": summary["collisions"]}
+                 "collisions": summary["collisions"], "wall_time_s": trained_for}
         evaluations.append(entry)
         ck = out / "checkpoints" / f"step_{step:09d}"
         ck.mkdir(exist_ok=True)
@@ -285,6 +288,7 @@ def _train(algo: str, env_id: str, timesteps, seed, out, num_envs, eval_freq, ev
             return True
 
     t0 = time.time()
+    clock["start"] = t0
     model.learn(total_timesteps=int(timesteps), callback=[EvalCallback(), ProgressCallback()])
     wall = time.time() - t0
     done_at = int(model.num_timesteps)
