@@ -12,8 +12,10 @@ class _Train:
 
     @staticmethod
     def add_parser(sub) -> None:
+        from acc_gym_agents.rl.policy import ALGOS  # numpy only: the parser stays cheap
+
         p_tr = sub.add_parser("train", help="train an ACC policy with stable-baselines3 (needs the rl extra)")
-        p_tr.add_argument("algo", choices=["ppo", "sac", "td3", "tqc", "crossq"],
+        p_tr.add_argument("algo", choices=list(ALGOS),
                           help="the algorithm (tqc and crossq: sb3-contrib's)")
         p_tr.add_argument("--env", default="acc_gym/CarFollowing-v0",
                           help="an environment id, plain (acc_gym/CarFollowing-v0) or module-qualified "
