@@ -97,6 +97,7 @@ COMMANDS = (
     ("leaderboard", "acc_gym.commands.leaderboard"),
     ("risk", "acc_gym.commands.risk"),
     ("string-stability", "acc_gym.commands.string_stability"),
+    ("robustness", "acc_gym.commands.robustness"),
     ("conformance", "acc_gym.commands.conformance"),
     ("ring", "acc_gym.commands.ring"),
 )

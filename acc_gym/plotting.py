@@ -163,6 +163,44 @@ def plot_string_stability(report, *, path=None) -> Figure:
     return fig
 
 
+def plot_robustness(result: dict, *, path=None) -> Figure:
+    """A :func:`acc_gym.evaluation.robustness.robustness` sweep as its degradation curves, one
+    panel per axis: share qualified and mean score / 100 against the level, collisions
+    (preventable ones filled) as markers on a second scale, and the column's largest
+    string-stability gain where it was measured. ``path``: also save a PNG there (atomically)."""
+    axes_names = [a for a in ("lag", "delay", "noise") if any(r["axis"] == a for r in result["levels"])]
+    fig = Figure(figsize=(4.2 * max(len(axes_names), 1), 3.8), layout="constrained")
+    panels = np.atleast_1d(fig.subplots(1, max(len(axes_names), 1)))
+    units = {"lag": "actuator lag [s]", "delay": "actuator dead time [s]",
+             "noise": "radar errors and dropouts [x typical]"}
+    for ax, axis in zip(panels, axes_names):
+        rows = [r for r in result["levels"] if r["axis"] == axis]
+        x = np.array([r["value"] for r in rows])
+        ax.plot(x, [r["share_qualified"] for r in rows], "o-", color="tab:green", label="share qualified")
+        ax.plot(x, [r["mean_score"] / 100.0 for r in rows], "s--", color="tab:blue", label="mean score / 100")
+        gains = [(v, r["max_gain"]) for v, r in zip(x, rows) if r["max_gain"] is not None]
+        if gains:
+            ax.plot(*zip(*gains), "^:", color="tab:purple", label="largest string-stability gain")
+            ax.axhline(1.0, color="k", lw=0.6, ls=":")
+        ax2 = ax.twinx()
+        ax2.bar(x, [r["collisions"] for r in rows], width=0.04 * max(float(np.ptp(x)), 1.0), color="tab:red",
+                alpha=0.35, label="collisions")
+        ax2.bar(x, [r["preventable_collisions"] for r in rows], width=0.04 * max(float(np.ptp(x)), 1.0),
+                color="tab:red", alpha=0.9, label="preventable")
+        ax2.set_ylabel("collisions")
+        ax2.set_ylim(0, max(1, max(r["collisions"] for r in rows)) * 1.3)
+        ax.set_xlabel(units[axis])
+        ax.set_ylim(0, max(1.05, 1.05 * max([g for _, g in gains] or [1.0])))
+        ax.grid(True, alpha=0.3)
+        if axis == axes_names[0]:
+            ax.legend(fontsize=7, loc="lower left")
+            ax2.legend(fontsize=7, loc="lower right")
+    fig.suptitle(f"{result['controller']} on {result['suite']} ({result['split']}, {result['episodes']} episodes)")
+    if path is not None:
+        save_figure(fig, path)
+    return fig
+
+
 def png_base64(fig: Figure, dpi: int = 90) -> str:
     """``fig`` as a base64 PNG (for a self-contained HTML report)."""
     FigureCanvasAgg(fig)

@@ -20,6 +20,10 @@ key (``_steps_per_s``)    case
 ``env_v1_counter``        ``env_v1`` and ``env_v1_idm`` with ``scenario_generator="counter"``
 ``env_v1_idm_counter``    (the counter-based, batched scenario generator; opt-in cases,
                           not in the default ``--cases``)
+``env_v1_typical``        ``env_v1`` and ``env_v1_carfollowing`` with ``sensors`` and
+``env_v1_carfollowing_    ``actuators`` ``"typical"`` (:mod:`acc_gym.onboard`; opt-in);
+typical``                 with the ideal case in the same run, ``*_typical_cost`` is
+                          their share of a step (``1 - rate / ideal rate``)
 ``vector_env``            ``acc_gym/SingleLane-v0``, 256 envs; likewise
                           ``vector_env_idm``, ``vector_env_carfollowing``, ``vector_env_ncap``,
                           ``vector_env_v1``, ``vector_env_v1_idm``, ...
@@ -114,8 +118,12 @@ CASES = {  # key prefix -> (id, settings)
     # opt-in: the counter-based, batched scenario generator (acc_gym.scenarios.batched)
     "env_v1_counter": ("acc_gym/SingleLane-v1", {"scenario_generator": "counter"}),
     "env_v1_idm_counter": ("acc_gym/SingleLane-v1", {"drivers": "idm", "scenario_generator": "counter"}),
+    # opt-in: the typical radar and actuators (acc_gym.onboard); their cost against the ideal case beside them
+    "env_v1_typical": ("acc_gym/SingleLane-v1", {"sensors": "typical", "actuators": "typical"}),
+    "env_v1_carfollowing_typical": ("acc_gym/CarFollowing-v1", {"sensors": "typical", "actuators": "typical"}),
 }
-DEFAULT_CASES = [case for case in CASES if not case.endswith("_counter")]
+OPT_IN = ("_counter", "_typical")
+DEFAULT_CASES = [case for case in CASES if not case.endswith(OPT_IN)]
 PEER_CASES = ("env_idm", "env_v1_idm")  # the cases SUMO's work equals (--peers adds them)
 
 
@@ -499,6 +507,11 @@ def main(argv=None) -> dict:
                                               / out["cavsandbox_column_vehicle_steps_per_s"])
         else:
             out["column_ratio_cavsandbox_reason"] = cavsandbox_missing
+    for case in args.cases:  # the typical sensors' and actuators' share of a step, where the ideal case ran too
+        base = case[:-len("_typical")] if case.endswith("_typical") else None
+        if base in args.cases:
+            for prefix in ("", "vector_"):
+                out[f"{prefix}{case}_cost"] = 1.0 - out[f"{prefix}{case}_steps_per_s"] / out[f"{prefix}{base}_steps_per_s"]
     if "env" in args.cases:
         out["vector_over_single"] = out["vector_env_steps_per_s"] / out["env_steps_per_s"]
     if args.workers > 1:

@@ -35,6 +35,18 @@ def test_bench_env_json_keys():
         assert out["workers"] == os.cpu_count() and out["vector_env_workers_steps_per_s"] > 0
 
 
+def test_bench_env_prices_the_typical_car_against_the_ideal_one_in_the_same_run():
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_env.py"), "--json", "--repeats", "1",
+                        "--steps", "100", "--vector-steps", "5", "--num-envs", "4", "--workers", "1",
+                        "--cases", "env_v1", "env_v1_typical"], capture_output=True, text=True, check=True, cwd=ROOT)
+    out = json.loads(r.stdout)
+    assert out["cases"]["env_v1_typical"] == {"id": "acc_gym/SingleLane-v1", "sensors": "typical",
+                                              "actuators": "typical"}
+    for prefix in ("", "vector_"):
+        cost = out[f"{prefix}env_v1_typical_cost"]
+        assert cost == 1.0 - out[f"{prefix}env_v1_typical_steps_per_s"] / out[f"{prefix}env_v1_steps_per_s"]
+
+
 def test_bench_env_peers_times_sumo_on_the_same_work():
     pytest.importorskip("libsumo", reason="libsumo is not installed (pip install '.[bench]' or '.[test]'): no SUMO peer to time")
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_env.py"), "--json", "--repeats", "1",

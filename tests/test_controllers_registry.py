@@ -130,7 +130,7 @@ def test_a_third_party_distribution_registers_a_controller_by_entry_point(readab
     assert ev.returncode == 0, ev.stderr
     assert json.loads(ev.stdout)["episodes"] == 1
     lb = run_cli(["leaderboard", "--allow-root", "--suite", "ncap-v1", "--controllers", "third-acc", "acc",
-                  "--episodes", "2", "--no-string-stability", "--no-iso15622", "--no-waves", "--json", "--out", str(root / "board")], root, root)
+                  "--episodes", "2", "--no-string-stability", "--no-iso15622", "--no-waves", "--no-robustness", "--json", "--out", str(root / "board")], root, root)
     assert lb.returncode == 0, lb.stderr
     ranking = {r["controller"]: r for r in json.loads(lb.stdout.splitlines()[-1])["ranking"]}
     assert ranking["third-acc"]["status"] == "ok" and ranking["acc"]["status"] == "ok"
@@ -154,7 +154,7 @@ def test_a_foreign_agents_module_first_on_the_path_changes_nothing(readable_tmpd
     ev = run_cli(["evaluate", "acc", "--env", "acc_gym/NCAP-v0", "--episodes", "1", "--json"], root, root)
     assert ev.returncode == 0, ev.stderr
     lb = run_cli(["leaderboard", "--suite", "ncap-v1", "--controllers", "acc", "ppo-acc", "--episodes", "2",
-                  "--no-string-stability", "--no-iso15622", "--no-waves", "--json", "--out", str(root / "board")], root, root)
+                  "--no-string-stability", "--no-iso15622", "--no-waves", "--no-robustness", "--json", "--out", str(root / "board")], root, root)
     assert lb.returncode == 0, lb.stderr
     assert all(r["status"] == "ok" for r in json.loads(lb.stdout.splitlines()[-1])["ranking"])
     tr = run_cli(["train", "--help"], root, root)

@@ -3,6 +3,7 @@ JSON and written as JSON, Markdown and HTML (:mod:`acc_gym.standards.conformance
 
 from __future__ import annotations
 
+from acc_gym.commands._args import add_onboard_args, onboard_kwargs
 from acc_gym.standards import battery as batteries
 from acc_gym.standards.conformance import (R157_REFERENCES, STANDARDS, conformance, markdown, to_json, work,
                                            write_reports)
@@ -21,6 +22,7 @@ def add_parser(sub) -> None:
                         "fsm-driver (the JRC's Fuzzy Safety Model)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--out", default=None, metavar="DIR", help="write conformance.json, .md, .html and envelope.png")
+    add_onboard_args(p, v2v=False)  # the controller's car (R157's reference drives without it)
 
 
 def run(args, parser) -> int:
@@ -38,7 +40,8 @@ def run(args, parser) -> int:
                 bar.advance(n)
 
             result = conformance(args.controller, standards, tuple(args.seeds), name=args.controller,
-                                 r157_reference=args.r157_reference, progress=tell)
+                                 r157_reference=args.r157_reference, progress=tell,
+                                 car=onboard_kwargs(args, parser) or None)
     except (ValueError, TypeError) as exc:
         parser.error(str(exc))
     files = write_reports(result, args.out) if args.out else None

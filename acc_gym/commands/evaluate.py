@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from acc_gym.commands._args import add_onboard_args, onboard_kwargs
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser("evaluate", help="score a controller over episodes of an environment")
@@ -18,7 +20,10 @@ def add_parser(sub) -> None:
     p.add_argument("--episodes", type=int, default=10)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--drivers", default=None, help="surrounding drivers (typical, atypical, malicious, idm, ...)")
+    p.add_argument("--v2v", action="store_true", help="observe the vehicle ahead's acceleration and the second "
+                                                      "vehicle ahead over V2V (cacc, mp-cacc)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    add_onboard_args(p)
 
 
 def run(args, parser) -> int:
@@ -28,6 +33,11 @@ def run(args, parser) -> int:
     from acc_gym.evaluation.runner import evaluate
 
     kwargs = {} if args.drivers is None else {"drivers": args.drivers}
+    kwargs.update(onboard_kwargs(args, parser))
+    if args.v2v:
+        kwargs["v2v"] = True
+    elif "v2v_link" in kwargs:
+        parser.error("--v2v-link needs --v2v (the link carries the V2V fields)")
     try:
         resolve_env_id(args.env)  # before the controller loads: an unknown id is named at once
     except ValueError as exc:

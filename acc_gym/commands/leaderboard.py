@@ -6,6 +6,8 @@ from __future__ import annotations
 import json
 import sys
 
+from acc_gym.commands._args import add_onboard_args, onboard_kwargs
+
 
 def add_parser(sub) -> None:
     from acc_gym.leaderboard.run import DEFAULT_BUDGET, DEFAULT_STEP_BUDGET, DEFAULT_WORKERS
@@ -79,7 +81,12 @@ def add_parser(sub) -> None:
                    help="skip the wave column (each controller drives one vehicle of five rings of 22 human-like "
                         "drivers: its ring's speed sd over the all-human ring's; about 5 s each; it does not "
                         "change points or rank)")
+    p.add_argument("--no-robustness", action="store_true",
+                   help="skip the robustness column (each controller drives the ncap-v2 test episodes in a car with "
+                        "the typical radar and actuators: share qualified and collisions; a few seconds each; it "
+                        "does not change points or rank)")
     p.add_argument("--json", action="store_true", help="print the ranking as one JSON object")
+    add_onboard_args(p, v2v=False)  # the suites' episodes in that car (the ranking is then that car's)
 
 
 def _limits(args):
@@ -113,7 +120,9 @@ def run(args, parser) -> int:
                                            **({} if args.no_string_stability else
                                               {"string_stability": by_name[n].get("string_stability")}),
                                            **({} if args.no_iso15622 else {"iso15622": by_name[n].get("iso15622")}),
-                                           **({} if args.no_waves else {"waves": by_name[n].get("waves")})}
+                                           **({} if args.no_waves else {"waves": by_name[n].get("waves")}),
+                                           **({} if args.no_robustness else
+                                              {"robustness": by_name[n].get("robustness")})}
                                           for n in results["ranking"]], "out": str(args.out)}), flush=True)
         else:
             bar.__exit__(None, None, None)  # the bar's last line stays, the table comes below it
@@ -137,6 +146,7 @@ def run(args, parser) -> int:
                                       secret=secret, risk={"family": args.risk_family, "budget": args.risk_budget}
                                       if args.risk else None, string_stability=not args.no_string_stability,
                                       iso15622=not args.no_iso15622, waves=not args.no_waves,
+                                      robustness=not args.no_robustness, car=onboard_kwargs(args, parser) or None,
                                       allow_root=args.allow_root,
                                       limits=_limits(args))
     except (OutputError, RuntimeError) as exc:  # a failed write, or a sandbox this machine cannot give

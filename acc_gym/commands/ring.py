@@ -8,7 +8,7 @@ import json
 
 import numpy as np
 
-from acc_gym.commands._args import number_params
+from acc_gym.commands._args import add_onboard_args, number_params, onboard_kwargs
 from acc_gym.drivers.mpc import DRIVER_MODELS, MODEL_VERSION
 from acc_gym.evaluation import waves as W
 from acc_gym.simulation import ring as R
@@ -43,6 +43,7 @@ def add_parser(sub) -> None:
                    help=f"the human drivers' model version (default {MODEL_VERSION}: with a reaction time, they jam; "
                         "5: paper 001's MPC as the other ids drive it, which does not jam)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    add_onboard_args(p, sensors=False)  # the controller's actuators (the ring's observation has no radar model)
     p.add_argument("--trace", default=None, metavar="PATH.csv",
                    help="write every step as CSV: t, vehicle, x, v, a, controlled (x along the ring in [0, L))")
     p.add_argument("--plot", default=None, metavar="PATH", help="save the space-time diagram and the speeds")
@@ -67,7 +68,7 @@ def run(args, parser) -> int:
         trace = R.simulate_ring(args.length, args.vehicles, layout=R.ring_layout(args.vehicles, positions),
                                 drivers=args.drivers, seeds=[args.seed], duration=args.duration,
                                 v_desired=args.v_desired, controller=ctl, set_speed=args.set_speed,
-                                driver_model=args.driver_model)
+                                driver_model=args.driver_model, **onboard_kwargs(args, parser))
         report = W.ring_waves(trace, warmup=args.warmup)[0]
     except (ValueError, TypeError) as exc:
         parser.error(str(exc))

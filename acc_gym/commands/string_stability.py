@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from acc_gym.commands._args import number_params
+from acc_gym.commands._args import add_onboard_args, number_params, onboard_kwargs
 from acc_gym.drivers.mpc import DRIVER_MODELS, ENV_DRIVER_MODEL
 from acc_gym.evaluation import string_stability as ss
 
@@ -40,6 +40,8 @@ def add_parser(sub) -> None:
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="a parameter of a built-in controller (repeatable), e.g. --param k1=0.4 for acc")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    # the controller's actuators (the radar is not modelled here: the sweep measures the loop's gains)
+    add_onboard_args(p, sensors=False)
     p.add_argument("--plot", default=None, metavar="PATH", help="save |Gamma| against frequency and the "
                                                                  "disturbance's space-time diagram")
 
@@ -61,7 +63,8 @@ def run(args, parser) -> int:
                 parser.error(f"--param needs a registered controller name; {args.controller!r} is not one")
         config = ss.PlatoonConfig(vehicles=args.vehicles, speed=args.speed, set_speed=args.set_speed,
                                   time_gap=args.time_gap, penetration=args.penetration, drivers=args.drivers,
-                                  seed=args.seed, v2v=args.v2v, driver_model=args.driver_model)
+                                  seed=args.seed, v2v=args.v2v, driver_model=args.driver_model,
+                                  **onboard_kwargs(args, parser))
         trace = None if args.lead_trace is None else ss.lead_trace(args.lead_trace, args.seed)
         report = ss.string_stability(controller, config, frequencies=args.frequencies,
                                      disturbance=not args.no_disturbance, trace=trace, name=args.controller)

@@ -9,6 +9,8 @@ import numpy as np
 
 from acc_gym._validation import from_mapping
 from acc_gym.evaluation.scoring import ScoringConfig
+from acc_gym.onboard import (ActuatorConfig, Randomisation, SensorConfig, V2VConfig, actuator_config, randomisation,
+                             sensor_config, v2v_config)
 from acc_gym.scenarios.registry import DRIVER_CHOICES, build, list_scenarios, scenario_type
 from acc_gym.scenarios.spec import Scenario
 
@@ -31,7 +33,15 @@ class EnvConfig:
     them, else uniform). ``drivers`` picks the surrounding drivers (see
     :func:`acc_gym.scenarios.build`). The action ``[-1, 1]`` maps to a desired acceleration
     ``action * accel_max`` for ``action >= 0`` and ``action * decel_max`` below (0 is
-    "no acceleration"), which the vehicle model then limits.
+    "no acceleration"), which the vehicle model then limits. ``sensors`` and ``actuators``
+    model the radar and the powertrain between the controller and the world
+    (:mod:`acc_gym.onboard`): a preset's name (``"ideal"``, the default, models neither;
+    ``"typical"``, ``"degraded"``), a mapping of the config's fields (rl-zoo3's
+    ``env_kwargs``) or a :class:`~acc_gym.onboard.SensorConfig` /
+    :class:`~acc_gym.onboard.ActuatorConfig`; ``v2v_link`` likewise the V2V link of ``v2v=True``
+    (:mod:`acc_gym.onboard.v2v`). ``randomise`` draws each episode's actuators and
+    radar error scale (:mod:`acc_gym.onboard.randomisation`; a mapping ``{"lag": [lo, hi],
+    "dead_time": [lo, hi], "noise": [lo, hi]}``, for training under domain randomisation).
     """
 
     scenarios: tuple = CARFOLLOWING
@@ -46,6 +56,13 @@ class EnvConfig:
     # the environment's version (the ids' -vN): 1 appends the safety-margin features to the
     # observation (acc_gym.envs.observation) and makes MarginReward the default reward
     version: int = 0
+    # the radar and the actuators between the controller and the world (acc_gym.onboard): a preset's name
+    # ("ideal", "typical", "degraded"), a mapping of the config's fields or the config; ideal: none modelled
+    sensors: SensorConfig = field(default_factory=SensorConfig)
+    actuators: ActuatorConfig = field(default_factory=ActuatorConfig)
+    v2v_link: V2VConfig = field(default_factory=V2VConfig)  # the V2V link with v2v=True (acc_gym.onboard.v2v)
+    # per-episode draws of the actuators' lag and dead time and the sensors' error multiple (None: none)
+    randomise: Randomisation | None = None
 
     def __post_init__(self) -> None:
         names = (self.scenarios,) if isinstance(self.scenarios, str) else tuple(self.scenarios)
@@ -82,6 +99,10 @@ class EnvConfig:
             object.__setattr__(self, "scoring", ScoringConfig.from_dict(self.scoring))
         if not isinstance(self.scoring, ScoringConfig):
             raise ValueError(f"EnvConfig.scoring must be a ScoringConfig, got {type(self.scoring).__name__}")
+        object.__setattr__(self, "sensors", sensor_config(self.sensors))
+        object.__setattr__(self, "actuators", actuator_config(self.actuators))
+        object.__setattr__(self, "randomise", randomisation(self.randomise))
+        object.__setattr__(self, "v2v_link", v2v_config(self.v2v_link))
 
     @property
     def probabilities(self) -> np.ndarray:
@@ -98,6 +119,10 @@ class EnvConfig:
     def to_dict(self) -> dict:
         d = {f.name: getattr(self, f.name) for f in fields(self)}
         d["scoring"] = asdict(self.scoring)
+        d["sensors"] = asdict(self.sensors)
+        d["actuators"] = asdict(self.actuators)
+        d["v2v_link"] = asdict(self.v2v_link)
+        d["randomise"] = None if self.randomise is None else asdict(self.randomise)
         return d
 
     @classmethod

@@ -7,6 +7,13 @@ scenario, step budget and episode record. ``reset_rows`` starts new episodes in 
 scenes; ``step`` advances all of them, computes the criteria and rewards as arrays, and
 scores every episode that ends. The single environment is this core with ``n = 1``, so a
 vector environment equals ``n`` single ones by construction.
+
+With a sensor, actuator or V2V link model in the config (:mod:`acc_gym.onboard`; none with
+the ``ideal`` presets, the default) the ego's car (:class:`acc_gym.envs.car.Car`) stands
+between the controller and the world: its command passes the actuators before the step and
+the observation's radar and V2V fields pass the radar and the link after it (the ``-v1``
+features are computed from what they report). The world, the criteria, the reward and the
+score see the true state.
 """
 
 from __future__ import annotations
@@ -21,6 +28,7 @@ from acc_gym.envs.observation import B0, B1, append_features, feature_bounds
 from acc_gym.envs.reward import CriteriaReward, MarginReward, StepIndicators
 from acc_gym.evaluation.scoring import judged_tau1, score_record
 from acc_gym.evaluation.trace import EgoTrace
+from acc_gym.envs.car import Car, true_fields
 from acc_gym.scenarios.spec import Scenario
 from acc_gym.scenarios.world import ABSENT_X, scene_arrays
 from acc_gym.simulation.single_lane import SingleLaneWorld
@@ -74,6 +82,7 @@ class EpisodeBatch:
         self._scratch_buf = None  # step(arrays=False)'s arrays: _scratch()
         self._prepared = None  # the single env's step's argument list, reused until a reset: _step_prepared()
         self._rows_buf = np.empty((2, self.n), dtype=np.int64)  # finish()'s rows recorded and rows ended
+        self.car = Car.of(config, self.n, DT)  # the ego's radar, actuators and V2V link (None: none modelled)
         self._cfg = np.array([cfg.b0, cfg.b1, cfg.band_width, cfg.steady_dv, cfg.moving_speed, cfg.transient,
                               cfg.sensor_range, cfg.response_decel, cfg.stop_speed, cfg.lead_margin], dtype=float)
 
@@ -143,6 +152,8 @@ class EpisodeBatch:
         if need > have:
             self._set_record(np.concatenate([self._rec_arr, np.zeros((len(_RECORD), self.n, need - have))], axis=2))
         self._record(rows_a)
+        if self.car is not None:
+            self.car.reset(rows, rngs, chosen, self.world.a[rows, 0])
 
     def draw(self, rng: np.random.Generator):
         """The next scenario of a scene whose generator is ``rng`` (what :meth:`reset_rows`
@@ -188,10 +199,32 @@ class EpisodeBatch:
         extra = self._feature_bounds[0].shape[0]
         low = np.full(m + extra, -np.inf) if low is None else np.asarray(low, dtype=float)
         high = np.full(m + extra, np.inf) if high is None else np.asarray(high, dtype=float)
-        out = np.empty((self.n, m), dtype=dtype if not extra else float)
+        out = np.empty((self.n, m), dtype=dtype if not (extra or self.car) else float)
         K.observe(self.world.observation_array(0), self.set_speed, self.time_gap, float(self.config.sensor_range),
                   bool(self.config.v2v), low[:m], high[:m], out)
+        if self.car is not None:
+            self.car.start_pending(self.world, out)
+            self.car.apply(out, low, high)
+            if not extra:
+                return out.astype(dtype, copy=False)
         return self._with_features(out, dtype) if extra else out
+
+    def _car_after_step(self) -> None:
+        """The car's radar and link after the world's step; :attr:`last_obs` with their fields (and
+        the ``-v1`` features computed from them)."""
+        obs = self.last_obs
+        m0 = 11 if self.config.v2v else 7
+        if obs is not None:
+            low, high = self.obs_bounds
+            fields = obs[:, :m0].astype(float)
+        else:
+            low = high = None
+            fields = true_fields(self, np.full(m0, -np.inf), np.full(m0, np.inf))
+        self.car.sense(self.world, fields)
+        if obs is None:
+            return
+        self.car.apply(fields, low, high)
+        self.last_obs = self._with_features(fields, np.float32) if obs.shape[1] > m0 else fields.astype(np.float32)
 
     def _with_features(self, obs0: np.ndarray, dtype) -> np.ndarray:
         """Version 1: the v0 observation ``obs0`` ``(n, m)`` with the safety-margin features
@@ -213,6 +246,24 @@ class EpisodeBatch:
 
     # ------------------------------------------------------------------ step
     def step(self, a_des: np.ndarray, active: np.ndarray | None = None, arrays: bool = True):
+        """Advance every scene by one step with the egos' commanded accelerations ``a_des``
+        [m/s^2] (:meth:`advance`), through their car when the config models one (module
+        docstring)."""
+        car = self.car
+        if car is None:
+            return self.advance(a_des, active, arrays)
+        if car.pending:
+            m0 = 11 if self.config.v2v else 7
+            car.start_pending(self.world, true_fields(self, np.full(m0, -np.inf), np.full(m0, np.inf)))
+        if car.actuators is not None:
+            if not np.isfinite(a_des).all():
+                check_finite("ego_a_des", a_des)  # raises, naming it, before it enters the actuators' history
+            a_des = car.command(a_des, self.world.a[:, 0])
+        out = self.advance(a_des, active, arrays)
+        self._car_after_step()
+        return out
+
+    def advance(self, a_des: np.ndarray, active: np.ndarray | None = None, arrays: bool = True):
         """Advance every scene by one step with desired ego accelerations ``a_des`` [m/s^2].
 
         Returns ``(reward, terminated, truncated, info)`` as arrays over the scenes;

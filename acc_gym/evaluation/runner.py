@@ -176,6 +176,37 @@ class EpisodeRun:
                           road=self.env.unwrapped.scenario.road)
 
 
+def run_lockstep(exchange, runs: dict, names: dict, first_slot: int = 0) -> dict:
+    """Drive the :class:`EpisodeRun` s ``runs`` (by index ``k``) all at once with a controller that
+    lives elsewhere: one round trip ``exchange(obs, starts, slots) -> actions`` per step carries a
+    row for every episode still running, episode ``k`` in slot ``first_slot + k`` (its copy is
+    ``reset()`` on its first row). Answers are checked: not one finite number per row is a
+    ``ValueError`` naming the count, or the value and the episode (``names[k]``); a finite action
+    is clipped to [-1, 1] and rounded to float32 as :func:`as_action` does. Returns the finished
+    runs by index (each a ``run`` whose ``info`` and ``trace()`` are the episode's)."""
+    runs = dict(runs)
+    done = {}
+    starts = {k: True for k in runs}
+    while runs:
+        ks = sorted(runs)
+        obs = np.stack([np.asarray(runs[k].obs, dtype=float) for k in ks])
+        raw = np.asarray(exchange(obs, np.array([starts[k] for k in ks]), first_slot + np.asarray(ks)))
+        starts = dict.fromkeys(starts, False)
+        if raw.dtype.kind not in "fiu" or raw.size != len(ks):
+            raise ValueError(f"the controller answered {len(ks)} observations with {raw.size} values "
+                             f"({raw.dtype}); expected {len(ks)} numbers")
+        actions = raw.astype(np.float64).reshape(-1)
+        bad = ~np.isfinite(actions)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(f"the controller returned an action that is not finite: {float(actions[i])!r} (in "
+                             f"{names[ks[i]]})")
+        for k, a in zip(ks, np.clip(actions, -1.0, 1.0).astype(np.float32)):
+            if runs[k].step(np.array([a], dtype=np.float32)):
+                done[k] = runs.pop(k)
+    return done
+
+
 def run_episode(env, controller, *, seed: int | None = None, scenario=None, record: bool = True):
     """One episode of a (single) ACC environment driven by ``controller``.
 
@@ -272,14 +303,17 @@ def preventability(scenarios: list, env_id: str, env_kwargs: dict | None = None)
     """UN R157's split of the collisions of ``scenarios`` (the built scenarios of collision
     episodes): ``preventable_collisions`` (the careful and competent driver, the built-in
     ``cc-driver``, avoids the same scenario) and ``non_preventable_collisions`` (it collides
-    too); see :mod:`acc_gym.standards.r157`."""
+    too); see :mod:`acc_gym.standards.r157`. The careful driver perceives and acts as its
+    model says: ``env_kwargs``' ``sensors`` and ``actuators`` (the car's radar and powertrain,
+    :mod:`acc_gym.onboard`) are not its, and it drives without them."""
     if not scenarios:
         return {"preventable_collisions": 0, "non_preventable_collisions": 0}
     import gymnasium as gym
 
     from acc_gym.standards.r157 import REFERENCE, collides
 
-    env = gym.make(env_id, **(env_kwargs or {}))
+    kwargs = {k: v for k, v in (env_kwargs or {}).items() if k not in ("sensors", "actuators")}
+    env = gym.make(env_id, **kwargs)
     cc = load_controller(REFERENCE)
     try:
         avoided = [not collides(env, cc, sc) for sc in scenarios]

@@ -99,6 +99,8 @@ from acc_gym.drivers.mpc import DRIVER_MODELS, ENV_DRIVER_MODEL, driver_model, h
 from acc_gym.drivers.population import KINDS, sample_drivers
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.core import DT
+from acc_gym.onboard import ActuatorConfig, Actuators, actuator_config
+from acc_gym.onboard.actuators import transfer as actuator_transfer
 from acc_gym.vehicle import VehicleParams, applied_acceleration, integrate
 
 TOLERANCE = 0.005  # gains up to 1 + TOLERANCE count as string stable
@@ -133,7 +135,9 @@ class PlatoonConfig:
     :data:`~acc_gym.drivers.mpc.DRIVER_MODELS`; default the environments' model 5; an
     unknown one is a ValueError naming it); ``settle`` [s] the time from the start of the
     oscillation to the start of the fit; ``v2v``, ``version``, ``accel_max``, ``decel_max`` and ``sensor_range`` as in
-    :class:`~acc_gym.envs.config.EnvConfig`.
+    :class:`~acc_gym.envs.config.EnvConfig`; ``actuators`` the lag and dead time between the
+    controller's command and its vehicle's acceleration (:mod:`acc_gym.onboard.actuators`;
+    the human drivers' vehicles have none: their reaction is their driver model's).
     """
 
     vehicles: int = 8
@@ -150,8 +154,11 @@ class PlatoonConfig:
     decel_max: float = 8.0  # [m/s^2]
     sensor_range: float = 200.0  # [m]
     driver_model: int = ENV_DRIVER_MODEL  # the human drivers' model (acc_gym.drivers.mpc.DRIVER_MODELS)
+    # the controller's vehicles' actuators (acc_gym.onboard.actuators; a preset's name, a mapping or the config)
+    actuators: ActuatorConfig = field(default_factory=ActuatorConfig)
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "actuators", actuator_config(self.actuators))
         n = self.vehicles
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= MAX_VEHICLES:
             raise ValueError(f"PlatoonConfig.vehicles must be an integer from 1 to {MAX_VEHICLES}, got {n!r}")
@@ -195,20 +202,34 @@ class PlatoonConfig:
 
 
 # -- analytic reference -----------------------------------------------------------------------------
-def linear_transfer(freq_hz, k1: float, k2: float, h: float, k3: float = 0.0, dt: float = DT) -> np.ndarray:
+def linear_transfer(freq_hz, k1: float, k2: float, h: float, k3: float = 0.0, dt: float = DT,
+                    actuators: ActuatorConfig | None = None) -> np.ndarray:
     """``Gamma(exp(j w dt))`` of the linear ACC / CACC law on the sampled vehicle model
-    (module docstring); ``dt = 0`` gives the continuous-time ``Gamma(j w)``."""
+    (module docstring); ``dt = 0`` gives the continuous-time ``Gamma(j w)``.
+
+    With ``actuators`` (:mod:`acc_gym.onboard.actuators`) the vehicle realises
+    ``A = G U`` of the law's command ``U`` (``G`` :func:`acc_gym.onboard.actuators.transfer`:
+    the lag ``alpha z / (z - 1 + alpha)`` and the dead time), so ``(z-1)/dt V_i = G (N V_(i-1) -
+    D V_i)`` with ``N`` the numerator and ``D = k2 + k1 I + k1 h`` of the law::
+
+        Gamma(z) = G N / ((z-1)/dt + G D)
+
+    (continuous: ``(k3 s^2 + k2 s + k1) e^(-s D) / ((T s + 1) s^2 + ((k2 + k1 h) s + k1) e^(-s D))``).
+    The feed-forward ``k3`` term acts on the vehicle ahead's realised acceleration, which its
+    V2V message carries, so ``N`` is unchanged."""
     w = 2.0 * np.pi * np.asarray(freq_hz, dtype=float)
+    g = 1.0 if actuators is None else actuator_transfer(actuators, freq_hz, dt)
     if dt == 0:
         s = 1j * w
-        return (k3 * s * s + k2 * s + k1) / (s * s + (k2 + k1 * h) * s + k1)
+        return g * (k3 * s * s + k2 * s + k1) / (s * s + g * ((k2 + k1 * h) * s + k1))
     z = np.exp(1j * w * dt)
     integ = dt * (z + 1.0) / (2.0 * (z - 1.0))
     num = k2 + k1 * integ + k3 * (z - 1.0) / (dt * z)
-    return num / ((z - 1.0) / dt + k2 + k1 * integ + k1 * h)
+    return g * num / ((z - 1.0) / dt + g * (k2 + k1 * integ + k1 * h))
 
 
-def time_gap_threshold(k1: float, k2: float, k3: float = 0.0, dt: float = DT, h_max: float = 5.0) -> float:
+def time_gap_threshold(k1: float, k2: float, k3: float = 0.0, dt: float = DT, h_max: float = 5.0,
+                       actuators: ActuatorConfig | None = None) -> float:
     """The smallest time gap [s] at which the linear law's ``sup_w |Gamma|`` is at most 1: the
     first stable one on a 0.01 s grid up to ``h_max``, refined by bisection (the sup over 4,000
     frequencies up to the Nyquist frequency). ``inf`` when none is. (Not monotone in general:
@@ -217,7 +238,7 @@ def time_gap_threshold(k1: float, k2: float, k3: float = 0.0, dt: float = DT, h_
     freqs = np.geomspace(1e-4, f_top * 0.999, 4000)
 
     def stable(h):
-        return float(np.max(np.abs(linear_transfer(freqs, k1, k2, h, k3, dt)))) <= 1.0 + 1e-9
+        return float(np.max(np.abs(linear_transfer(freqs, k1, k2, h, k3, dt, actuators)))) <= 1.0 + 1e-9
 
     grid = np.arange(0.0, h_max + 1e-9, 0.01)
     ok = [h for h in grid if stable(h)]
@@ -535,6 +556,8 @@ def _simulate(actors, layout: np.ndarray, humans, lead: np.ndarray, gap0: np.nda
     mine = layout < 0
     cells = np.argwhere(mine)  # row-major (b, j)
     ctl = actors(cells) if cells.size else None
+    # the controlled vehicles' actuators (none when ideal): at rest on the start's zero acceleration
+    actuators = Actuators(cfg.actuators, len(cells), DT) if cells.size and not cfg.actuators.ideal else None
     human_cells = np.argwhere(~mine)
     driver = None
     if human_cells.size:
@@ -578,6 +601,8 @@ def _simulate(actors, layout: np.ndarray, humans, lead: np.ndarray, gap0: np.nda
             act = ctl(rows, k, failed, errors, row_names, t)
             acc = np.empty_like(act)
             K.action_to_accel(act, float(cfg.accel_max), float(cfg.decel_max), acc)
+            if actuators is not None:
+                acc = actuators.command(acc, a[cells[:, 0], cells[:, 1] + 1])
             a_des[cells[:, 0], cells[:, 1] + 1] = acc
         if driver is not None:
             hb, hj = human_cells[:, 0], human_cells[:, 1]

@@ -32,7 +32,8 @@ the report's plots. The controller's standard output and error go to its own log
 
 Then the columns measured through the same sandbox (:class:`Columns`), each a cell whose failure
 is its own (the episodes stand): string stability, ISO 15622 (:mod:`acc_gym.leaderboard.iso15622`)
-and waves on a ring (:mod:`acc_gym.leaderboard.waves`). Each column's copies of the controller
+waves on a ring (:mod:`acc_gym.leaderboard.waves`) and the typical car
+(:mod:`acc_gym.leaderboard.robustness`). Each column's copies of the controller
 are fresh ones (slots no earlier round trip used), and its first round trip is exempt from the
 step budget (the sandbox makes those copies then). A controller failure leaves the sandbox's
 socket in an unknown state (an answer may still be on its way), so a column after a failed one
@@ -63,11 +64,12 @@ class Columns:
     platoon: bool = False  # string stability (acc_gym.evaluation.string_stability.leaderboard_verdict)
     iso15622: bool = False  # ISO 15622 on the iso15622-v1 battery (acc_gym.leaderboard.iso15622)
     waves: dict | None = None  # the all-human rings (acc_gym.leaderboard.waves.human_baseline); None: no column
+    robustness: bool = False  # the typical car's radar and actuators (acc_gym.leaderboard.robustness)
 
     def __iter__(self):
         """The columns to measure, in order: ``(name, measure, failed_cell)``; ``measure(column)``
         takes a :class:`_Column` and returns the cell, raising :class:`ControllerFailed`."""
-        from acc_gym.leaderboard import iso15622, waves
+        from acc_gym.leaderboard import iso15622, robustness, waves
 
         if self.platoon:
             yield "string_stability", _platoon, lambda reason: {"failed": reason}
@@ -75,6 +77,8 @@ class Columns:
             yield "iso15622", _iso15622, iso15622.failed_cell
         if self.waves is not None:
             yield "waves", lambda column: _waves(column, self.waves), waves.failed_cell
+        if self.robustness:
+            yield "robustness", _robustness, robustness.failed_cell
 
 
 def step_budget_message(budget: float) -> str:
@@ -90,6 +94,13 @@ class Job:
     episode: int  # position in the suite's episode list
     env_id: str
     scenario: Scenario
+    car: tuple = ()  # the ego's car, as gym.make settings ((name, value) pairs: sensors, actuators); () none
+
+    def make_env(self):
+        """The job's environment: ``gym.make(env_id, **car)``."""
+        import gymnasium as gym
+
+        return gym.make(self.env_id, **dict(self.car))
 
 
 def group_of(scenario_id: str) -> str:
@@ -316,19 +327,20 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
         declared = _hello(ctl, budget, deadline_total)  # the time gap it is judged at
         envs: dict = {}
 
-        def env_for(slot: int, env_id: str):
-            return envs.get((slot, env_id)) or envs.setdefault((slot, env_id), gym.make(env_id))
+        def env_for(slot: int, job: Job):
+            key = (slot, job.env_id, job.car)
+            return envs.get(key) or envs.setdefault(key, job.make_env())
 
         first = [True]
 
         def run_batched(order: list[int], on_done) -> None:
             """Run the jobs ``order``, each env id's as rows of one :class:`EpisodeBatch` with
             ``in_flight`` rows (its scenes step together, as single envs would)."""
-            by_env: dict[str, list[int]] = {}
+            by_env: dict[tuple, list[int]] = {}
             for j in order:
-                by_env.setdefault(jobs[j].env_id, []).append(j)
-            for env_id, queue in by_env.items():
-                batch = BatchRuns(gym.make(env_id).unwrapped, min(in_flight, len(queue)))
+                by_env.setdefault((jobs[j].env_id, jobs[j].car), []).append(j)
+            for queue in by_env.values():
+                batch = BatchRuns(jobs[queue[0]].make_env().unwrapped, min(in_flight, len(queue)))
                 active: dict[int, int] = {}  # row -> job index
                 starts = np.zeros(batch.n, dtype=bool)
                 for row in range(batch.n):
@@ -363,7 +375,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
                 if queue:
                     j = queue.pop(0)
                     job = jobs[j]
-                    active[slot] = [j, EpisodeRun(env_for(slot, job.env_id), seed=job.scenario.seed,
+                    active[slot] = [j, EpisodeRun(env_for(slot, job), seed=job.scenario.seed,
                                                   scenario=job.scenario, record=record, time_gap=declared), True]
 
             for slot in range(min(in_flight, len(queue))):
@@ -500,6 +512,15 @@ def _waves(column: _Column, baseline: dict) -> dict:
     return remote_cell(column.exchange, column.declared, baseline)
 
 
+def _robustness(column: _Column) -> dict:
+    """The robustness cell (:mod:`acc_gym.leaderboard.robustness`): the suite's episodes run here in
+    a car with the typical radar and actuators, with the actions of the controller's fresh copies."""
+    from acc_gym.leaderboard.robustness import remote_cell
+
+    column.where = "the robustness column"
+    return remote_cell(column.exchange, column.declared, first_slot=column.first_slot)
+
+
 @dataclass
 class Outcome:
     """What the runner learned about one controller."""
@@ -513,6 +534,7 @@ class Outcome:
     string_stability: dict | None = None
     iso15622: dict | None = None
     waves: dict | None = None
+    robustness: dict | None = None
     wall_time_s: float = 0.0
     log: str | None = None
 
@@ -588,6 +610,8 @@ class _Running:
                     self.outcome.iso15622 = payload[0]
                 elif kind == "waves":
                     self.outcome.waves = payload[0]
+                elif kind == "robustness":
+                    self.outcome.robustness = payload[0]
                 elif kind == "done":
                     problem = self.ledger.problem()
                     if problem is not None:

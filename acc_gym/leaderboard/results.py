@@ -176,6 +176,10 @@ ISO15622_COLUMNS = ("iso15622_passed", "iso15622_failed", "iso15622_failed_to_ru
 # the wave column (on by default): the ratio of speed sds to the all-human ring's, of mean speeds, the collisions
 # on the controller's rings, and the reason when the controller failed in the column
 WAVE_COLUMNS = ("waves_ratio", "waves_speed_ratio", "waves_collisions", "waves_failed_to_run")
+# the robustness column (on by default): in the typical car, the share qualified, mean score, collisions, preventable
+# ones, and the reason when the controller failed in the column
+ROBUSTNESS_COLUMNS = ("robustness_qualified", "robustness_score", "robustness_collisions", "robustness_preventable",
+                      "robustness_failed_to_run")
 #: table columns with an interval, and the summary figure they show
 INTERVALS = {"points": "mean_points", "score": "mean_score", "qualified": "share_qualified",
              "collisions_per_hour": "collisions_per_hour", "comfortable": "share_comfortable",
@@ -231,6 +235,11 @@ def table_rows(results: dict) -> list[dict]:
             row["waves"] = c.get("waves")
             for col in WAVE_COLUMNS:
                 row[col] = cell.get(col[len("waves_"):])
+        if _has_robustness(results):
+            cell = c.get("robustness") or {}
+            row["robustness"] = c.get("robustness")
+            for col in ROBUSTNESS_COLUMNS:
+                row[col] = cell.get(col[len("robustness_"):])
         vs = c.get("vs_above")
         row["vs_above"] = uncertainty.verdict(vs)
         row["vs_above_diff"] = vs["diff"] if vs else None
@@ -270,16 +279,27 @@ def _has_waves(results: dict) -> bool:
     return bool((results["manifest"].get("settings") or {}).get("waves"))
 
 
+def _has_robustness(results: dict) -> bool:
+    return bool((results["manifest"].get("settings") or {}).get("robustness"))
+
+
 def column_notes(results: dict) -> list[str]:
     """The lines under the ranking table: the sandbox's warning if there is one (strangers' code ran as
-    root, ``--allow-root``), then the optional columns that ran (string stability, ISO 15622, waves)."""
-    from acc_gym.leaderboard import iso15622, waves
+    root, ``--allow-root``), then the optional columns that ran (string stability, ISO 15622, waves,
+    robustness)."""
+    from acc_gym.leaderboard import iso15622, robustness, waves
 
     warning = (results["manifest"].get("sandbox") or {}).get("warning")  # strangers' code ran as root
-    return ([warning] if warning else []) + \
+    from acc_gym.onboard import describe
+
+    car = (results["manifest"].get("settings") or {}).get("car")
+    car_note = [f"every episode in a car (acc_gym.onboard, --sensors / --actuators): radar {describe(car['sensors'])}, "
+                f"actuators {describe(car['actuators'])}; the ranking is that car's"] if car else []
+    return ([warning] if warning else []) + car_note + \
         ([string_stability_note(results)] if _has_string_stability(results) else []) + \
         ([iso15622.note(results)] if _has_iso15622(results) else []) + \
-        ([waves.note(results)] if _has_waves(results) else [])
+        ([waves.note(results)] if _has_waves(results) else []) + \
+        ([robustness.note(results)] if _has_robustness(results) else [])
 
 
 def _fmt(key: str, value) -> str:
@@ -301,6 +321,10 @@ def _fmt(key: str, value) -> str:
         from acc_gym.leaderboard.waves import format_cell as format_waves
 
         return format_waves(value)
+    if key == "robustness":
+        from acc_gym.leaderboard.robustness import format_cell as format_robustness
+
+        return format_robustness(value)
     if value is None:
         return "-"
     if key == "vs_above":
@@ -344,6 +368,10 @@ def display_columns(results: dict) -> list[tuple[str, str]]:
         from acc_gym.leaderboard.waves import HEADER as WAVES
 
         cols.append(("waves", WAVES))
+    if _has_robustness(results):
+        from acc_gym.leaderboard.robustness import HEADER as ROBUSTNESS
+
+        cols.append(("robustness", ROBUSTNESS))
     return cols + [("episodes", "episodes"), ("wall_time_s", "time [s]")]
 
 
@@ -384,7 +412,7 @@ NAME_WIDTH = 28  # [characters] a longer controller name is shortened in the pri
 #: the printed table's columns: always these, then the optional ones while the table fits TEXT_WIDTH
 TEXT_COLUMNS = ("rank", "controller", "points", "vs_above", "score", "collisions", "preventable_collisions",
                 "min_ttc_s")
-TEXT_OPTIONAL = ("qualified", "suites", "string_stability", "iso15622", "waves", "risk", "wall_time_s", "comfortable",
+TEXT_OPTIONAL = ("qualified", "suites", "string_stability", "iso15622", "waves", "robustness", "risk", "wall_time_s", "comfortable",
                  "safe_spacing", "max_jerk_mps3", "collisions_per_hour", "episodes")
 
 
@@ -488,7 +516,7 @@ def markdown(results: dict) -> str:
 def csv_text(results: dict) -> str:
     rows = table_rows(results)
     buf = io.StringIO()
-    nested = ("risk", "string_stability", "iso15622", "waves", "collisions_r157")  # as their numeric columns
+    nested = ("risk", "string_stability", "iso15622", "waves", "robustness", "collisions_r157")  # as their numeric columns
     fields = [f for f in rows[0] if f not in nested] if rows else list(COLUMNS)
     writer = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
     writer.writeheader()

@@ -238,6 +238,30 @@ def _waves_settings(baseline) -> dict:
     return settings(baseline)
 
 
+def _car(car: dict | None) -> tuple[tuple, dict | None]:
+    """``car`` as a job's ``car`` (its settings validated into configs, as pairs) and as the manifest
+    records it; ``((), None)`` for none or the ideal car."""
+    from dataclasses import asdict
+
+    from acc_gym.onboard import actuator_config, sensor_config
+
+    if not car:
+        return (), None
+    unknown = set(car) - {"sensors", "actuators"}
+    if unknown:
+        raise ValueError(f"car settings {sorted(unknown)} unknown; known: ['actuators', 'sensors']")
+    cfg = {"sensors": sensor_config(car.get("sensors")), "actuators": actuator_config(car.get("actuators"))}
+    if cfg["sensors"].ideal and cfg["actuators"].ideal:
+        return (), None
+    return tuple(sorted(cfg.items())), {k: asdict(v) for k, v in cfg.items()}
+
+
+def _robustness_settings() -> dict:
+    from acc_gym.leaderboard.robustness import settings
+
+    return settings()
+
+
 def _iso15622_settings() -> dict:
     from acc_gym.leaderboard.iso15622 import settings
 
@@ -248,7 +272,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                     step_budget: float = DEFAULT_STEP_BUDGET, budget: float = DEFAULT_BUDGET,
                     episodes: int | None = None, report: bool = True, progress=None, sandbox: str = "process",
                     show=None, secret=None, risk: dict | None = None, string_stability: bool = True,
-                    iso15622: bool = True, waves: bool = True, allow_root: bool = False, limits=None, phase=None,
+                    iso15622: bool = True, waves: bool = True, robustness: bool = True, car: dict | None = None,
+                    allow_root: bool = False, limits=None, phase=None,
                     warm: bool = True, episode_progress=None) -> dict:
     """Score ``controllers`` on ``suites`` (names; default all) and rank them; returns the results dict.
 
@@ -285,7 +310,13 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     ``waves``: then each controller drives one vehicle of five rings of 22 human-like drivers
     (:mod:`acc_gym.leaderboard.waves`; the all-human rings are run once, here, about 10 s; each
     controller's about 5 s); the ratio of speed sds goes into each controller's ``waves`` and a
-    column. No column changes points or ranks.
+    column. ``robustness``: then each controller drives the ncap-v2 test episodes in a car with the
+    typical radar and actuators (:mod:`acc_gym.leaderboard.robustness`; a few seconds each): the
+    share qualified and the collisions (preventable or not) go into each controller's
+    ``robustness`` and a column. No column changes points or ranks.
+    ``car``: the suites' episodes in a car with these ``gym.make`` settings (``sensors``,
+    ``actuators``: presets or configs, :mod:`acc_gym.onboard`; None: the ideal car), recorded in the
+    manifest (``settings.car``); the ranking is then the ranking in that car.
     ``allow_root``: run strangers' code as root without a user id of its own (refused otherwise,
     :func:`acc_gym.leaderboard.sandbox.vet`); the reports then carry the warning.
     ``limits``: each controller's :class:`acc_gym.leaderboard.sandbox.Limits` (log, memory,
@@ -301,6 +332,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
         raise ValueError("suites must name at least one suite")
     if len(set(names)) != len(names):
         raise ValueError(f"suites {names} name a suite more than once")
+    car_items, car_settings = _car(car)
     suite_objs = [get_suite(n) for n in names]  # ValueError naming an unknown one
     if split not in (*SPLITS, private_split.PRIVATE):
         raise ValueError(f"unknown split {split!r}; use one of {[*SPLITS, private_split.PRIVATE]}")
@@ -338,7 +370,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                     "content_sha256": definition["content_sha256"][split],
                     "content_matches": content_digest(built) == definition["content_sha256"][split]}
         run = built if episodes is None else built[:episodes]
-        jobs += [Job(s.name, split, k, s.env_id, sc) for k, sc in enumerate(run)]
+        jobs += [Job(s.name, split, k, s.env_id, sc, car_items) for k, sc in enumerate(run)]
         suite_info.append({"name": s.name, "version": s.version, "family": s.family, "env_id": s.env_id,
                            "split": split, **info, "definition_hash": s.hash(),
                            "episodes_defined": len(built), "episodes_run": len(run),
@@ -387,7 +419,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                                 episode_progress=None if episode_progress is None else ticked,
                                 log_dir=logs, uids=uids, sandbox=sandbox,
                                 columns=Columns(platoon=bool(string_stability), iso15622=bool(iso15622),
-                                                waves=baseline))
+                                                waves=baseline, robustness=bool(robustness)))
     except BaseException:
         if staging is not None:
             shutil.rmtree(staging, ignore_errors=True)
@@ -419,7 +451,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                         "episodes": o.episodes, **({"risk": risks.get(ref)} if risk is not None else {}),
                         **({"string_stability": o.string_stability} if string_stability else {}),
                         **({"iso15622": o.iso15622} if iso15622 else {}),
-                        **({"waves": o.waves} if waves else {})})
+                        **({"waves": o.waves} if waves else {}),
+                        **({"robustness": o.robustness} if robustness else {})})
     ranking = rank(entries)
     manifest = {
         "format": "acc_gym.leaderboard/1", "created": created, "versions": versions(),
@@ -430,7 +463,9 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                      "start_method": START_METHOD, "in_flight": IN_FLIGHT, "risk": risk,
                      "string_stability": _platoon_settings() if string_stability else None,
                      "iso15622": _iso15622_settings() if iso15622 else None,
-                     "waves": _waves_settings(baseline) if waves else None},
+                     "waves": _waves_settings(baseline) if waves else None,
+                     "robustness": _robustness_settings() if robustness else None,
+                     "car": car_settings},
         "sandbox": sandbox_info, "ranking_rule": RANKING_RULE,
         "results_key_id": None if key is None else signature({}, key)["key_id"],
         "timings": {"total_wall_s": time.monotonic() - t0,

@@ -205,8 +205,13 @@ class _Controllers:
     the leaderboard's sandbox) fed the environments' observation (:class:`RingSensors`)."""
 
     def __init__(self, actors, cells: np.ndarray, *, set_speed: float, time_gap: float, sensor_range: float,
-                 version: int, accel_max: float, decel_max: float):
+                 version: int, accel_max: float, decel_max: float, actuators=None, dt: float = 0.2):
+        from acc_gym.onboard import Actuators, actuator_config
+
         self.cells = cells
+        cfg = actuator_config(actuators)
+        # the controlled vehicles' actuators (acc_gym.onboard.actuators; None: ideal), at rest at the start
+        self.actuators = None if cfg.ideal or not len(cells) else Actuators(cfg, len(cells), dt)
         self.copies = actors(cells)
         self.sensors = RingSensors(cells, set_speed=set_speed, time_gap=time_gap, sensor_range=sensor_range,
                                    version=version)
@@ -229,7 +234,10 @@ class _Controllers:
             e = self.errors[int(np.flatnonzero(self.failed)[0])]
             raise ValueError(f"the controller failed in {e.row} at vehicle {e.vehicle - 1}, t = {e.time_s:g} s: "
                              f"{e.message}")
-        return actions_to_accel(act, self.accel_max, self.decel_max)
+        acc = actions_to_accel(act, self.accel_max, self.decel_max)
+        if self.actuators is not None:  # from what the vehicles realised over the last step
+            acc = self.actuators.command(acc, fields[1][self.cells[:, 0], self.cells[:, 1]])
+        return acc
 
 
 def _positive(name: str, value) -> float:
@@ -452,7 +460,8 @@ def simulate_ring(length: float, vehicles: int, *, layout=None, drivers: str = "
                   controller=None, models: dict | None = None, vehicle: VehicleParams | None = None,
                   set_speed: float | None = None, time_gap: float = 1.5, sensor_range: float = 200.0,
                   version: int = 0, accel_max: float = 3.0, decel_max: float = 8.0,
-                  driver_model: int = MODEL_VERSION, actors=None, standins: bool = False) -> RingTrace:
+                  driver_model: int = MODEL_VERSION, actors=None, standins: bool = False,
+                  actuators=None) -> RingTrace:
     """Simulate ``len(seeds)`` rings of ``vehicles`` vehicles on a closed lane of ``length`` [m]
     for ``duration`` [s] at steps of ``dt`` [s] (see the module docstring): a :class:`RingWorld`
     stepped ``duration / dt`` times, the controller under test at its controlled cells.
@@ -478,6 +487,9 @@ def simulate_ring(length: float, vehicles: int, *, layout=None, drivers: str = "
     set_speed, time_gap, sensor_range, version, accel_max, decel_max: the controller's
         observation and action scaling, as :class:`~acc_gym.envs.config.EnvConfig`'s (set speed
         default: ``v_desired``).
+    actuators: the controlled vehicles' actuators (:mod:`acc_gym.onboard.actuators`: a preset's
+        name, a mapping or an :class:`~acc_gym.onboard.ActuatorConfig`; None: ideal). The human
+        drivers' vehicles have none: their reaction is their driver model's.
     driver_model: the human drivers' model version (:data:`acc_gym.drivers.mpc.DRIVER_MODELS`;
         default the newest, 6: with human perception, each ring's estimation errors drawn from
         its own seed's second stream, :func:`ring_rng`).
@@ -500,7 +512,7 @@ def simulate_ring(length: float, vehicles: int, *, layout=None, drivers: str = "
     if len(world.cells) and actors is not None:
         ctl = _Controllers(actors, world.cells, set_speed=world.v_desired if set_speed is None else float(set_speed),
                            time_gap=time_gap, sensor_range=sensor_range, version=version, accel_max=accel_max,
-                           decel_max=decel_max)
+                           decel_max=decel_max, actuators=actuators, dt=dt)
     T = int(round(float(duration) / dt))
     rec = {k: np.empty((T + 1, R, N)) for k in ("s", "v", "a")}
     rec["s"][0], rec["v"][0], rec["a"][0] = world.s, world.v, world.a

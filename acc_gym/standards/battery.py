@@ -60,11 +60,12 @@ def battery_cases(battery: str = ISO15622_V1, seeds=SEEDS):
     return cases
 
 
-def run_battery(controller, battery: str = ISO15622_V1, seeds=SEEDS, progress=None):
+def run_battery(controller, battery: str = ISO15622_V1, seeds=SEEDS, progress=None, car: dict | None = None):
     """Drive ``controller`` (a name, ``module:attribute``, a saved model or an object) through
     ``battery``: returns ``(drives, errors, traces)`` -- an :class:`~acc_gym.standards.iso15622.Drive`
     per episode, ``(label, reason)`` for each episode the controller failed (the rest still
-    run), and the recorded world traces by label (for plots)."""
+    run), and the recorded world traces by label (for plots). ``car``: the ego's car, as
+    ``gym.make`` settings (``sensors``, ``actuators``: :mod:`acc_gym.onboard`; None: ideal)."""
     import gymnasium as gym
 
     import acc_gym  # noqa: F401  (registers the ids)
@@ -73,7 +74,7 @@ def run_battery(controller, battery: str = ISO15622_V1, seeds=SEEDS, progress=No
 
     cases = battery_cases(battery, seeds)
     policy = load_controller(controller)
-    env = gym.make(ENV_ID)
+    env = gym.make(ENV_ID, **(car or {}))
     drives, errors, traces = [], [], {}
     for name, seed, sc in cases:
         try:
@@ -120,42 +121,23 @@ def remote_iso15622_report(exchange, time_gap: float | None = None, battery: str
     import numpy as np
 
     import acc_gym  # noqa: F401  (registers the ids)
-    from acc_gym.evaluation.runner import EpisodeRun
+    from acc_gym.evaluation.runner import EpisodeRun, run_lockstep
     from acc_gym.evaluation.trace import EgoTrace
 
     if isinstance(first_slot, bool) or not isinstance(first_slot, (int, np.integer)) or first_slot < 0:
         raise ValueError(f"first_slot must be a non-negative integer, got {first_slot!r}")
     cases = battery_cases(battery, seeds)
-    envs, runs = [], {}
-    drives: dict[int, iso15622.Drive] = {}
+    envs = [gym.make(ENV_ID) for _ in cases]
     try:
-        for k, (_, seed, sc) in enumerate(cases):
-            envs.append(gym.make(ENV_ID))
-            runs[k] = EpisodeRun(envs[-1], seed=seed, scenario=sc, record=True, time_gap=time_gap)
-        starts = np.ones(len(cases), dtype=bool)
-        while runs:
-            ks = sorted(runs)
-            obs = np.stack([np.asarray(runs[k].obs, dtype=float) for k in ks])
-            raw = np.asarray(exchange(obs, starts[ks], first_slot + np.asarray(ks)))
-            starts[:] = False
-            if raw.dtype.kind not in "fiu" or raw.size != len(ks):
-                raise ValueError(f"the controller answered {len(ks)} observations with {raw.size} values "
-                                 f"({raw.dtype}); expected {len(ks)} numbers")
-            actions = raw.astype(np.float64).reshape(-1)
-            bad = ~np.isfinite(actions)
-            if bad.any():
-                i = int(np.argmax(bad))
-                raise ValueError(f"the controller returned an action that is not finite: {float(actions[i])!r} (in "
-                                 f"{cases[ks[i]][0]})")
-            actions = np.clip(actions, -1.0, 1.0).astype(np.float32)
-            for k, a in zip(ks, actions):
-                if runs[k].step(np.array([a], dtype=np.float32)):
-                    name, _, sc = cases[k]
-                    drives[k] = iso15622.Drive.from_trace(name, EgoTrace.from_world(runs.pop(k).trace(), 0, sc))
+        runs = {k: EpisodeRun(env, seed=seed, scenario=sc, record=True, time_gap=time_gap)
+                for k, (env, (_, seed, sc)) in enumerate(zip(envs, cases))}
+        done = run_lockstep(exchange, runs, {k: name for k, (name, _, _) in enumerate(cases)}, first_slot)
     finally:
         for env in envs:
             env.close()
-    return iso15622.check_drives([drives[k] for k in sorted(drives)], limits)
+    drives = [iso15622.Drive.from_trace(name, EgoTrace.from_world(done[k].trace(), 0, sc))
+              for k, (name, _, sc) in enumerate(cases)]
+    return iso15622.check_drives(drives, limits)
 
 
 def iso15622_report(controller, battery: str = ISO15622_V1, seeds=SEEDS, limits=None) -> iso15622.Report:

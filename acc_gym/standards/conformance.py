@@ -55,13 +55,15 @@ def work(standards, seeds=batteries.SEEDS) -> int:
 
 
 def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name: str | None = None,
-                r157_reference: str = "cc-driver", progress=None) -> dict:
+                r157_reference: str = "cc-driver", progress=None, car: dict | None = None) -> dict:
     """The verdicts of ``controller`` by each of ``standards`` (JSON-safe), and the drives for plots
     under the key ``"_drives"`` (dropped by :func:`to_json`). ``r157_reference``: R157's reference
     driver, ``cc-driver`` (the careful and competent driver) or ``fsm-driver`` (the JRC's Fuzzy
     Safety Model); the cases' ``cc_driver_collides`` key holds the reference's outcome either way.
     ``progress(stage, n)``: told the standard being judged (``n`` 0) and each ``n`` drives, cases
-    or test points done (:func:`work` counts them all)."""
+    or test points done (:func:`work` counts them all). ``car``: the controller's car, as ``gym.make``
+    settings (``sensors``, ``actuators``: :mod:`acc_gym.onboard`; None: ideal), recorded under ``"car"``;
+    R157's reference drives without it."""
     standards = list(standards)
     unknown = [s for s in standards if s not in STANDARDS]
     if unknown or not standards:
@@ -69,10 +71,17 @@ def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name
     tell = progress if progress is not None else (lambda stage, n: None)
     out = {"controller": name or (controller if isinstance(controller, str) else type(controller).__name__),
            "standards": {}}
+    if car:
+        from dataclasses import asdict
+
+        from acc_gym.onboard import actuator_config, sensor_config
+
+        out["car"] = {"sensors": asdict(sensor_config(car.get("sensors"))),
+                      "actuators": asdict(actuator_config(car.get("actuators")))}
     if "iso15622" in standards:
         tell("ISO 15622", 0)
         drives, errors, _ = batteries.run_battery(controller, batteries.ISO15622_V1, seeds,
-                                                  progress=lambda _name: tell("ISO 15622", 1))
+                                                  progress=lambda _name: tell("ISO 15622", 1), car=car)
         report = iso15622.check_drives(drives)
         report.errors = errors
         out["standards"]["iso15622"] = {**report.to_dict(), "battery": batteries.ISO15622_V1,
@@ -84,13 +93,13 @@ def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name
         if r157_reference not in R157_REFERENCES:
             raise ValueError(f"unknown R157 reference {r157_reference!r}; choose from {list(R157_REFERENCES)}")
         tell("UN R157", 0)
-        out["standards"]["r157"] = r157_cases(controller, reference=r157_reference)
+        out["standards"]["r157"] = r157_cases(controller, reference=r157_reference, car=car)
         tell("UN R157", len(out["standards"]["r157"]["cases"]))
     if "ncap" in standards:
         from acc_gym.standards.ncap import ncap_report
 
         tell("Euro NCAP", 0)
-        out["standards"]["ncap"] = ncap_report(controller, progress=lambda _sid: tell("Euro NCAP", 1))
+        out["standards"]["ncap"] = ncap_report(controller, progress=lambda _sid: tell("Euro NCAP", 1), car=car)
     return out
 
 
@@ -106,6 +115,12 @@ def _num(x, unit: str = "") -> str:
 
 def markdown(result: dict) -> str:
     lines = [f"# Conformance: `{result['controller']}`", ""]
+    if result.get("car"):
+        from acc_gym.onboard import describe
+
+        car = result["car"]
+        lines += [f"In a car (acc_gym.onboard): radar {describe(car['sensors'])}; actuators "
+                  f"{describe(car['actuators'])}. UN R157's reference drives without it.", ""]
     iso = result["standards"].get("iso15622")
     if iso is not None:
         verdict = {True: "passes", False: "**fails**", None: "not exercised"}[iso["passed"]]

@@ -164,7 +164,8 @@ def measure_point(env, policy, point: TestPoint) -> dict:
     from acc_gym.evaluation.runner import run_episode
     from acc_gym.scenarios import build
 
-    _, trace = run_episode(env, policy, scenario=build(point.scenario_id))
+    sc = build(point.scenario_id)
+    _, trace = run_episode(env, policy, seed=int(sc.seed), scenario=sc)
     hit = np.flatnonzero(trace.gap[:, 0, 0] <= 0.0)
     impact = float(trace.v[hit[0], 0, 0]) * 3.6 if hit.size else None
     reduction = point.conflict_speed if impact is None else max(point.conflict_speed - impact, 0.0)
@@ -172,10 +173,11 @@ def measure_point(env, policy, point: TestPoint) -> dict:
             "v_reduction": round(reduction, 3)}
 
 
-def run_points(controller, points=ACC_POINTS, progress=None) -> tuple[list, list]:
+def run_points(controller, points=ACC_POINTS, progress=None, car: dict | None = None) -> tuple[list, list]:
     """Each runnable point driven by ``controller``: ``(rows, errors)``; a row is the point's
     fields plus :func:`measure_point`'s; a point the controller fails (it raises, answers NaN)
-    is in ``errors`` as ``{"scenario_id", "reason"}`` and the others still run."""
+    is in ``errors`` as ``{"scenario_id", "reason"}`` and the others still run. ``car``: the ego's
+    car, as ``gym.make`` settings (:mod:`acc_gym.onboard`; None: ideal)."""
     import gymnasium as gym
 
     import acc_gym  # noqa: F401
@@ -184,7 +186,7 @@ def run_points(controller, points=ACC_POINTS, progress=None) -> tuple[list, list
     policy = load_controller(controller)
     with warnings.catch_warnings():  # the pinned -v0 is deliberate: gymnasium's "upgrade to v1" is noise here
         warnings.filterwarnings("ignore", message=".*is out of date", category=DeprecationWarning)
-        env = gym.make(ENV_ID)
+        env = gym.make(ENV_ID, **(car or {}))
     rows, errors = [], []
     try:
         for p in points:
@@ -257,13 +259,13 @@ def score(rows: list) -> dict:
     return {"score_percent": round(overall, 2), "test_types": types, "tests": tests}
 
 
-def ncap_report(controller, progress=None) -> dict:
+def ncap_report(controller, progress=None, car: dict | None = None) -> dict:
     """The Euro NCAP section of a conformance report (JSON-safe): ``{"protocol", "calculator",
     "score_percent", "test_types", "tests", "frontal_collisions", "out_of_scope", "errors"}``.
     Without the calculator the measurements are still reported and ``score_percent`` is None
     with the reason under ``"calculator"``."""
-    rows, errors = run_points(controller, ACC_POINTS, progress)
-    fc_rows, fc_errors = run_points(controller, FC_POINTS, progress)
+    rows, errors = run_points(controller, ACC_POINTS, progress, car)
+    fc_rows, fc_errors = run_points(controller, FC_POINTS, progress, car)
     version = calculator_version()
     out = {"protocol": PROTOCOL, "calculator": f"{DISTRIBUTION} {version}" if version else
            f"not installed: pip install 'acc-gym[ncap]' ({DISTRIBUTION})",

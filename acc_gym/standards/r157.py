@@ -196,10 +196,11 @@ def _build_case(k: int, sid: str, sparams: dict):
 
 
 def collides(env, controller, scenario) -> bool:
-    """Whether ``controller`` (loaded) collides in ``scenario`` (built), run in ``env``."""
+    """Whether ``controller`` (loaded) collides in ``scenario`` (built), run in ``env`` seeded with
+    the scenario's seed (what a car's radar in ``env`` draws, :mod:`acc_gym.envs.car`)."""
     from acc_gym.evaluation.runner import run_episode
 
-    info, _ = run_episode(env, controller, scenario=scenario, record=False)
+    info, _ = run_episode(env, controller, seed=int(scenario.seed), scenario=scenario, record=False)
     return bool(info["report"]["metrics"]["collision"])
 
 
@@ -220,12 +221,14 @@ def preventability(controller, scenario, reference: str = REFERENCE) -> dict:
     return {"controller_collides": mine, "cc_driver_collides": ref, "preventable": (not ref) if mine else None}
 
 
-def r157_cases(controller, reference: str = REFERENCE, families=None) -> dict:
+def r157_cases(controller, reference: str = REFERENCE, families=None, car: dict | None = None) -> dict:
     """Every case of :func:`grid` (or those of ``families``, names of its families) for
     ``controller`` and the C&C ``reference``; JSON-safe:
     ``{"cases": [{"family", "params", "controller_collides", "cc_driver_collides", "preventable"}],
     "preventable_collisions", "non_preventable_collisions", "errors"}`` (``preventable`` is None
-    where the controller does not collide). A case the controller fails is named in ``errors``."""
+    where the controller does not collide). A case the controller fails is named in ``errors``.
+    ``car``: the controller's car, as ``gym.make`` settings (``sensors``, ``actuators``:
+    :mod:`acc_gym.onboard`; None: ideal); the reference drives without it."""
     import gymnasium as gym
 
     import acc_gym  # noqa: F401
@@ -240,6 +243,7 @@ def r157_cases(controller, reference: str = REFERENCE, families=None) -> dict:
     policy = load_controller(controller)
     cc = load_controller(reference)
     env = gym.make(ENV_ID)
+    mine_env = gym.make(ENV_ID, **car) if car else env
     cases, errors = [], []
     try:
         for k, (family, params, sid, sparams) in enumerate(grid()):  # k: the case's seed, whatever is selected
@@ -247,7 +251,7 @@ def r157_cases(controller, reference: str = REFERENCE, families=None) -> dict:
                 continue
             sc = _build_case(k, sid, sparams)
             try:
-                mine = collides(env, policy, sc)
+                mine = collides(mine_env, policy, sc)
             except Exception as exc:  # noqa: BLE001  (a failing controller is a result)
                 text = str(exc).splitlines()[0] if str(exc) else ""
                 errors.append({"family": family, "params": params, "reason": f"{type(exc).__name__}: {text}"})
@@ -257,6 +261,7 @@ def r157_cases(controller, reference: str = REFERENCE, families=None) -> dict:
                           "cc_driver_collides": ref, "preventable": (not ref) if mine else None})
     finally:
         env.close()
+        mine_env.close()
     return {"reference": reference, "cases": cases,
             "preventable_collisions": sum(c["preventable"] is True for c in cases),
             "non_preventable_collisions": sum(c["preventable"] is False for c in cases), "errors": errors}

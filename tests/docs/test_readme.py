@@ -25,7 +25,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / "README.md"
-LB_QUICK = " --episodes 1 --no-string-stability --no-iso15622 --no-waves"
+LB_QUICK = " --episodes 1 --no-string-stability --no-iso15622 --no-waves --no-robustness"
 # command as written in the README (comment stripped) -> what is appended to run it quickly
 QUICK = {
     "acc-gym leaderboard": LB_QUICK + " --controllers acc constant",
@@ -37,12 +37,16 @@ QUICK = {
     # the README's leaderboard line with a relative run directory and a module file, as printed
     # but with 2 episodes and the columns off (they have their own tests; waves alone took 2 min)
     "acc-gym leaderboard --suite ncap-v2 --controllers acc mycontroller:Gap runs/ppo --episodes 10":
-        " --episodes 2 --no-string-stability --no-iso15622 --no-waves",
+        " --episodes 2 --no-string-stability --no-iso15622 --no-waves --no-robustness",
     "acc-gym ring follower-stopper --length 260 --duration 300 --json": None,
     "acc-gym string-stability acc --time-gap 0.6 --plot ss.png": " --frequencies 0.02 0.1",
     "acc-gym string-stability mycontroller:Gap --vehicles 20 --json": " --frequencies 0.02 0.1",
     "acc-gym string-stability acc --penetration 0.25 --drivers naturalistic": " --frequencies 0.02 0.1",
     "python benchmarks/conformance.py": " --controllers acc",
+    "acc-gym string-stability acc --time-gap 1.0 --actuator-delay 1.0": " --frequencies 0.02 0.1",
+    "acc-gym evaluate acc --env acc_gym/SingleLane-v1 --episodes 20 --sensors typical --actuators typical": None,
+    "acc-gym robustness ppo --plot robustness.png": " --episodes 3 --lags 0 0.5 --delays 0.5 --noise 1 "
+                                                   "--no-string-stability",
 }
 REPLACED = {  # a count in the README lowered for the quick run
     "acc-gym evaluate mycontroller:Gap --env acc_gym/CarFollowing-v1 --episodes 20":

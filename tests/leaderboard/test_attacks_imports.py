@@ -57,7 +57,7 @@ def submissions(tmp_path, monkeypatch):
 def test_no_trusted_process_imports_a_module_beside_the_controllers(submissions):
     where, marker = submissions
     r = run_leaderboard(["ncap-v1"], "test", ["acc", "mylaw:Law"], episodes=2, workers=2, string_stability=False,
-                        iso15622=False, waves=False, budget=600, allow_root=True)
+                        iso15622=False, waves=False, robustness=False, budget=600, allow_root=True)
     by = {c["name"]: c for c in r["controllers"]}
     assert [by[n]["status"] for n in ("acc", "mylaw:Law")] == ["ok", "ok"], [c["reason"] for c in by.values()]
     assert len(by["mylaw:Law"]["episodes"]) == 2  # its module was found in the working directory
@@ -73,7 +73,7 @@ def test_a_controller_named_like_an_importable_module_is_refused(submissions, re
     where, marker = submissions
     (where / "numpy.py").write_text("raise SystemExit('imported')\n")
     with pytest.raises(ValueError, match=words):
-        run_leaderboard(["ncap-v1"], "test", ["acc", ref], episodes=1, string_stability=False, iso15622=False, waves=False,
+        run_leaderboard(["ncap-v1"], "test", ["acc", ref], episodes=1, string_stability=False, iso15622=False, waves=False, robustness=False,
                         allow_root=True)
     assert not marker.exists()
 

@@ -60,11 +60,11 @@ def test_the_secret_never_comes_from_the_environment(tmp_path, monkeypatch):
 def test_the_results_key_comes_from_a_private_file_for_a_run(tmp_path, monkeypatch):
     monkeypatch.setenv(KEY_FILE_ENV, str(_file(tmp_path / "key", KEY, 0o644)))
     with pytest.raises(ValueError, match=r"results key .* is mode 0644: group or others may read"):
-        run_leaderboard(["ncap-v1"], "test", ["constant"], episodes=1, out=tmp_path / "b", waves=False)
+        run_leaderboard(["ncap-v1"], "test", ["constant"], episodes=1, out=tmp_path / "b", waves=False, robustness=False)
     monkeypatch.delenv(KEY_FILE_ENV)
     monkeypatch.setenv(KEY_ENV, KEY)
     with pytest.raises(ValueError, match="results key is in the environment .*ACC_GYM_RESULTS_KEY_FILE"):
-        run_leaderboard(["ncap-v1"], "test", ["constant"], episodes=1, out=tmp_path / "b", waves=False)
+        run_leaderboard(["ncap-v1"], "test", ["constant"], episodes=1, out=tmp_path / "b", waves=False, robustness=False)
     assert not (tmp_path / "b").exists()
 
 
@@ -76,7 +76,7 @@ def private_run(tmp_path_factory):
     out = base / "board"
     assert main(["leaderboard", "--suite", "ncap-v1", "--split", "private", "--secret", str(secret),
                  "--controllers", "constant", "--episodes", "2", "--out", str(out), "--no-string-stability",
-                 "--no-iso15622", "--no-waves"]) == 0
+                 "--no-iso15622", "--no-waves", "--no-robustness"]) == 0
     return out
 
 
@@ -119,7 +119,7 @@ def test_a_stranger_on_the_private_split_needs_its_own_user_id(tmp_path, monkeyp
     with pytest.raises(RuntimeError, match=r"'cheats:ReadsResults' on the private split without a user id .*"
                                            r"/root is mode 0700.*could read the secret"):
         run_leaderboard(["ncap-v1"], "private", ["acc", "cheats:ReadsResults"], episodes=1, secret=SECRET,
-                        allow_root=True, out=tmp_path / "b", waves=False)
+                        allow_root=True, out=tmp_path / "b", waves=False, robustness=False)
 
 
 @pytest.mark.skipif(not sandbox_mod.own_uid_possible()[0], reason=f"no own user id here: "
@@ -129,7 +129,7 @@ def test_a_controller_reading_an_earlier_private_run_gains_nothing(private_run, 
     try:
         monkeypatch.syspath_prepend(str(HERE))
         r = run_leaderboard(["ncap-v1"], "private", ["cheats:ReadsResults"], episodes=1, secret=SECRET,
-                            out=tmp_path / "b", string_stability=False, iso15622=False, waves=False)
+                            out=tmp_path / "b", string_stability=False, iso15622=False, waves=False, robustness=False)
     finally:
         (HERE / "cheats_private_target.txt").unlink()
     text = (tmp_path / "b" / r["controllers"][0]["log"]).read_text()
@@ -148,7 +148,7 @@ def test_a_stranger_is_refused_as_root_without_its_own_user_id(tmp_path, monkeyp
     monkeypatch.syspath_prepend(str(HERE))
     with pytest.raises(RuntimeError, match=r"refusing to run 'cheats:FullThrottle' as root without a user id of its "
                                            r"own \(not readable .*/root is mode 0700\).*a system Python.*--allow-root"):
-        run_leaderboard(["ncap-v1"], "test", ["acc", "cheats:FullThrottle"], episodes=1, out=tmp_path / "b", waves=False)
+        run_leaderboard(["ncap-v1"], "test", ["acc", "cheats:FullThrottle"], episodes=1, out=tmp_path / "b", waves=False, robustness=False)
     assert not (tmp_path / "b").exists()
     code = main(["leaderboard", "--suite", "ncap-v1", "--controllers", "cheats:FullThrottle", "--episodes", "1",
                  "--out", str(tmp_path / "b")])
@@ -161,7 +161,7 @@ def test_with_allow_root_every_report_says_so_and_builtins_need_no_flag(tmp_path
     monkeypatch.syspath_prepend(str(HERE))
     out = tmp_path / "b"
     code = main(["leaderboard", "--suite", "ncap-v1", "--controllers", "constant", "cheats:FullThrottle",
-                 "--episodes", "1", "--out", str(out), "--allow-root", "--no-string-stability", "--no-iso15622", "--no-waves"])
+                 "--episodes", "1", "--out", str(out), "--allow-root", "--no-string-stability", "--no-iso15622", "--no-waves", "--no-robustness"])
     assert code == 0
     terminal = capsys.readouterr().out
     words = "WARNING: controllers ran as root without a user id of their own"
@@ -170,7 +170,7 @@ def test_with_allow_root_every_report_says_so_and_builtins_need_no_flag(tmp_path
     assert doc["results"]["manifest"]["sandbox"]["warning"].startswith(words)
     assert words in (out / "leaderboard.md").read_text() and words in (out / "report.html").read_text()
     alone = run_leaderboard(["ncap-v1"], "test", ["constant", "idm"], episodes=1, string_stability=False,
-                            iso15622=False, waves=False)  # the package's own code: no flag, no warning
+                            iso15622=False, waves=False, robustness=False)  # the package's own code: no flag, no warning
     assert alone["manifest"]["sandbox"]["warning"] is None
     assert [c["status"] for c in alone["controllers"]] == ["ok", "ok"]
     assert sys.path  # untouched

@@ -35,7 +35,7 @@ def test_the_probe_fails_where_the_package_does_not_import(monkeypatch, tmp_path
     assert problem is not None and "No module named" in problem, problem
     with pytest.raises(RuntimeError, match="(?s)bwrap.*not usable.*No module named .acc_gym."):
         run_leaderboard(["ncap-v1"], "test", ["acc"], episodes=1, out=tmp_path / "b", sandbox="bwrap",
-                        string_stability=False, waves=False)
+                        string_stability=False, waves=False, robustness=False)
     assert not (tmp_path / "b").exists()
 
 

@@ -43,7 +43,7 @@ def board(tmp_path_factory):
         with pytest.MonkeyPatch.context() as mp:
             mp.syspath_prepend(str(HERE))
             r = run_leaderboard(["ncap-v1"], "test", ["acc", *CHEATS], episodes=2, workers=1, step_budget=1.0,
-                                budget=300, out=out, string_stability=False, iso15622=False, waves=False, allow_root=True,
+                                budget=300, out=out, string_stability=False, iso15622=False, waves=False, robustness=False, allow_root=True,
                                 limits=Limits(log_bytes=1 << 20, memory_bytes=1 << 30, processes=32, tmp_bytes=16 << 20,
                                               file_bytes=4 << 20, disk_bytes=64 << 20))
         connections = 0

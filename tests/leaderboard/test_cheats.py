@@ -62,11 +62,11 @@ def runs():
         before = {p: p.read_bytes() for p in watched}
         t0 = time.monotonic()
         mixed = run_leaderboard(SUITES, "test", ["acc", *CHEATS], episodes=2, workers=2, step_budget=1.0,
-                                string_stability=False, iso15622=False, waves=False,
+                                string_stability=False, iso15622=False, waves=False, robustness=False,
                                 budget=300, out=out, allow_root=True)  # as root without own uids: say so
         wall = time.monotonic() - t0
         alone = run_leaderboard(SUITES, "test", ["acc"], episodes=2, workers=1, string_stability=False,
-                                iso15622=False, waves=False)
+                                iso15622=False, waves=False, robustness=False)
         yield {"mixed": mixed, "alone": alone, "out": out, "before": before, "wall": wall}
         target.unlink()
 
@@ -173,7 +173,7 @@ def test_an_unusable_bwrap_is_refused_before_anything_runs(monkeypatch, tmp_path
     out = tmp_path / "board"
     with pytest.raises(RuntimeError, match="bwrap.*not usable.*No permissions to create new namespace"):
         run_leaderboard(["ncap-v1"], "test", ["acc"], episodes=1, out=out, sandbox="bwrap", string_stability=False,
-                        allow_root=True, waves=False)
+                        allow_root=True, waves=False, robustness=False)
     assert not out.exists()
 
 
@@ -188,7 +188,7 @@ def bwrap_run():
         mp.syspath_prepend(str(HERE))
         out = Path(tempfile.mkdtemp(prefix="acc-gym-bwrap-")) / "board"
         r = run_leaderboard(SUITES, "test", ["acc", *BWRAP_CHEATS, "cheats:FillsDisk", "cheats:FillsTmp"],
-                            string_stability=False, iso15622=False, waves=False, report=False, limits=LIMITS,
+                            string_stability=False, iso15622=False, waves=False, robustness=False, report=False, limits=LIMITS,
                             episodes=2, workers=2, budget=300, out=out, sandbox="bwrap", allow_root=True)
     return r, out
 

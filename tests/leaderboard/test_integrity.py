@@ -28,7 +28,7 @@ def signed_run(tmp_path_factory):
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv(KEY_FILE_ENV, str(key_file))
         r = run_leaderboard(["ncap-v1"], "test", ["constant", "idm"], episodes=2, out=out, report=False,
-                            string_stability=False, iso15622=False, waves=False)  # the columns: not what is signed here
+                            string_stability=False, iso15622=False, waves=False, robustness=False)  # the columns: not what is signed here
     return r, out
 
 
@@ -121,7 +121,7 @@ def test_the_private_split_runs_unshipped_episodes_and_records_only_a_commitment
     out = tmp_path / "board"
     code = main(["leaderboard", "--suite", "carfollowing-v1", "--split", "private", "--secret", str(secret_file),
                  "--controllers", "constant", "--episodes", "3", "--out", str(out), "--no-report",
-                 "--no-string-stability", "--no-iso15622", "--no-waves"])
+                 "--no-string-stability", "--no-iso15622", "--no-waves", "--no-robustness"])
     assert code == 0
     text = (out / "results.json").read_text()
     r = load_results(out)

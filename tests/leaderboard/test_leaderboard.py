@@ -117,7 +117,7 @@ def test_ranking_is_deterministic_and_independent_of_workers(cli_run):
     _, _, out = cli_run
     two = load_results(out)
     one = run_leaderboard(["ncap-v1", "carfollowing-v1"], "test", ["acc", "idm", "bad_controllers:Brakes"],
-                          episodes=2, workers=1, string_stability=False, iso15622=False, waves=False,
+                          episodes=2, workers=1, string_stability=False, iso15622=False, waves=False, robustness=False,
                           allow_root=True)  # (columns not compared)
     assert one["ranking"] == two["ranking"]
     assert scores(one) == scores(two)
@@ -135,7 +135,7 @@ def test_failing_controllers_are_reported_and_the_others_finish():
            "bad_controllers:ExitsEarly": "the controller's process died (exit code 0) at ncap-v1 episode 0",
            "no_such_module_xyz:Thing": "no_such_module_xyz"}
     r = run_leaderboard("ncap-v1", "test", ["acc", *bad, "idm"], episodes=n, workers=2, step_budget=1.5,
-                        allow_root=True, budget=120, string_stability=False, iso15622=False, waves=False)
+                        allow_root=True, budget=120, string_stability=False, iso15622=False, waves=False, robustness=False)
     by_name = {c["name"]: c for c in r["controllers"]}
     for name in good:
         c = by_name[name]
@@ -157,7 +157,7 @@ def test_failing_controllers_are_reported_and_the_others_finish():
 
 def test_a_controller_past_its_total_budget_is_killed():
     r = run_leaderboard("ncap-v1", "test", ["bad_controllers:Slow"], episodes=1, workers=1, step_budget=5,
-                        allow_root=True, budget=4, waves=False)
+                        allow_root=True, budget=4, waves=False, robustness=False)
     (c,) = r["controllers"]
     assert c["status"] == "failed" and "total budget of 4 s" in c["reason"] and c["wall_time_s"] < 30
 
@@ -230,7 +230,7 @@ def builtins_run(importable_helpers):
     # the columns (string stability, ISO 15622) have their own tests: left out here, as in
     # every run below that asserts nothing about them (they were most of this file's time)
     return names, run_leaderboard(["malicious-v3", "carfollowing-v1"], "test", [*names, "cheats:FullThrottle"],
-                                  allow_root=True, episodes=1, workers=2, string_stability=False, iso15622=False, waves=False)
+                                  allow_root=True, episodes=1, workers=2, string_stability=False, iso15622=False, waves=False, robustness=False)
 
 
 def test_builtins_and_the_shipped_policy_score_as_under_evaluate(builtins_run):
@@ -279,7 +279,7 @@ def test_full_throttle_that_crashes_ranks_below_every_builtin_that_never_collide
 
 # -- the output: refused before anything runs, or failing safely after the ranking is printed ---------
 CHEAP = ["leaderboard", "--suite", "ncap-v1", "--controllers", "constant", "--episodes", "1", "--no-report",
-         "--no-string-stability", "--no-iso15622", "--no-waves"]
+         "--no-string-stability", "--no-iso15622", "--no-waves", "--no-robustness"]
 
 
 def test_an_out_that_cannot_be_a_directory_is_refused_before_anything_runs(tmp_path, capsys):
@@ -347,7 +347,7 @@ def test_a_failing_write_keeps_the_old_results_whole_and_the_ranking_printed(tmp
 
     with pytest.raises(OutputError) as err:  # from Python: the error carries the results all the same
         run_leaderboard("ncap-v1", "test", ["constant"], episodes=1, out=out, report=False, string_stability=False,
-                        allow_root=True, iso15622=False, waves=False)
+                        allow_root=True, iso15622=False, waves=False, robustness=False)
     assert err.value.path == str(out) and err.value.results["ranking"] == ["constant"]
     assert err.value.results["controllers"][0]["status"] == "ok"
     assert (out / "results.json").read_text() == "old results" and [p.name for p in tmp_path.iterdir()] == ["board"]
@@ -363,7 +363,7 @@ def test_equal_figures_share_a_rank_whatever_the_names(tmp_path, capsys):
     refs = ["bad_controllers:BrakesAgain", "idm", "bad_controllers:Brakes"]
     code = main(["leaderboard", "--allow-root", "--suite", "ncap-v1", "--controllers", *refs, "--episodes", "1",
                  "--workers", "2",
-                 "--no-report", "--no-string-stability", "--no-iso15622", "--no-waves", "--json", "--out", str(out)])
+                 "--no-report", "--no-string-stability", "--no-iso15622", "--no-waves", "--no-robustness", "--json", "--out", str(out)])
     assert code == 0
     printed = {row["controller"]: row for row in json.loads(capsys.readouterr().out)["ranking"]}
     r = load_results(out)
@@ -409,4 +409,4 @@ def test_a_container_sandbox_is_not_offered(capsys):
     assert exit_.value.code == 2 and "--sandbox" in err and "invalid choice: 'container'" in err
     assert "process" in err and "bwrap" in err  # the choices there are
     with pytest.raises(ValueError, match=r"unknown sandbox 'container'; use one of \['process', 'bwrap'\]"):
-        run_leaderboard("ncap-v1", "test", ["constant"], episodes=1, sandbox="container", waves=False)
+        run_leaderboard("ncap-v1", "test", ["constant"], episodes=1, sandbox="container", waves=False, robustness=False)

@@ -27,7 +27,7 @@ def user_run(tmp_path_factory):
     (cwd / "mycontroller.py").write_text("from acc_gym_agents.controllers import LinearACC as Gap  # noqa: F401\n")
     cmd = [sys.executable, "-m", "acc_gym.cli", "leaderboard", "--suite", "ncap-v2", "--controllers", "acc", "ppo",
            "runs/ppo", "mycontroller:Gap", "mycontroller:Nope", "--episodes", "2", "--no-string-stability",
-           "--no-iso15622", "--no-waves", "--allow-root", "--out", "board"]
+           "--no-iso15622", "--no-waves", "--no-robustness", "--allow-root", "--out", "board"]
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     done = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=900, env=env)
     return cwd, done

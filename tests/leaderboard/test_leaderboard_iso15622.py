@@ -23,7 +23,7 @@ def board(tmp_path_factory):
     with pytest.MonkeyPatch.context() as mp:
         mp.syspath_prepend(str(HERE))
         results = run_leaderboard("ncap-v1", "test", ["acc", "idm", FAILS], out=out, episodes=1, workers=2,
-                                  allow_root=True, string_stability=False, report=True, waves=False)
+                                  allow_root=True, string_stability=False, report=True, waves=False, robustness=False)
     return results, out
 
 
@@ -88,7 +88,7 @@ def test_csv_and_tables_show_the_column(board, local):
 def test_the_column_changes_no_points_or_rank(board):
     results, _ = board
     plain = run_leaderboard("ncap-v1", "test", ["acc", "idm"], episodes=1, workers=2, string_stability=False,
-                            allow_root=True, iso15622=False, waves=False)
+                            allow_root=True, iso15622=False, waves=False, robustness=False)
     assert plain["ranking"] == [n for n in results["ranking"] if n != FAILS]
     for name in ("acc", "idm"):
         a, b = entry(plain, name), entry(results, name)

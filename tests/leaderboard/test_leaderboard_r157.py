@@ -11,7 +11,7 @@ from acc_gym.leaderboard.results import COLLISIONS_NOTE, R157_NOTE, _text_cells,
 
 def test_collisions_are_split_into_preventable_and_not():
     r = run_leaderboard("ncap-v1", "test", ["constant", "acc"], episodes=4, workers=2, string_stability=False,
-                        iso15622=False, waves=False)
+                        iso15622=False, waves=False, robustness=False)
     by = {c["name"]: c for c in r["controllers"]}
     hits = [e for e in by["constant"]["episodes"] if e["metrics"]["collision"]]
     assert len(hits) == 4 and all(e["preventable"] is True for e in hits)  # CCRs: the careful driver stops

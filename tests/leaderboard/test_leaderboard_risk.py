@@ -22,7 +22,7 @@ def importable_helpers():
 def risk_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("lb") / "board"
     r = run_leaderboard("ncap-v1", "test", ["gm", "acc", "bad_controllers:ReturnsNaN"], episodes=1, workers=2,
-                        out=out, report=False, risk={"budget": 512}, string_stability=False, iso15622=False, waves=False,
+                        out=out, report=False, risk={"budget": 512}, string_stability=False, iso15622=False, waves=False, robustness=False,
                         allow_root=True)
     return r, out
 
@@ -70,4 +70,4 @@ def test_tables_and_files_carry_the_estimate(risk_run):
 ])
 def test_bad_risk_options_are_named_before_anything_runs(risk, match):
     with pytest.raises(ValueError, match=match):
-        run_leaderboard("ncap-v1", controllers=["acc"], episodes=1, risk=risk, waves=False)
+        run_leaderboard("ncap-v1", controllers=["acc"], episodes=1, risk=risk, waves=False, robustness=False)

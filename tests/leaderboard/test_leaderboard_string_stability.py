@@ -21,7 +21,7 @@ def board():
         mp.syspath_prepend(str(HERE))
         yield run_leaderboard("ncap-v1", "test", ["acc", "bad_controllers:ShortGapACC", "constant",
                                                   "bad_controllers:FailsInAColumn"], episodes=1, workers=2,
-                              allow_root=True, waves=False)
+                              allow_root=True, waves=False, robustness=False)
 
 
 def cell(results, name):
@@ -64,7 +64,7 @@ def test_tables_show_the_column_and_the_rule(board):
 
 
 def test_the_column_can_be_left_out():
-    r = run_leaderboard("ncap-v1", "test", ["acc"], episodes=1, workers=1, string_stability=False, waves=False)
+    r = run_leaderboard("ncap-v1", "test", ["acc"], episodes=1, workers=1, string_stability=False, waves=False, robustness=False)
     assert "string_stability" not in r["controllers"][0]
     assert r["manifest"]["settings"]["string_stability"] is None
     assert "string stability" not in text_table(r)

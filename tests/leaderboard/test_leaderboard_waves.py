@@ -87,6 +87,6 @@ def test_through_the_sandbox_the_cell_is_the_rings_run_here(baseline):
 
 def test_without_the_column_there_is_no_cell_setting_or_column():
     r = run_leaderboard("ncap-v1", "test", ["constant"], episodes=1, workers=1, string_stability=False,
-                        iso15622=False, waves=False, allow_root=True)
+                        iso15622=False, waves=False, robustness=False, allow_root=True)
     assert "waves" not in r["controllers"][0] and r["manifest"]["settings"]["waves"] is None
     assert "waves" not in text_table(r) and "waves_ratio" not in csv_text(r)
