@@ -23,12 +23,12 @@ import numpy as np
 from acc_gym._validation import check_finite
 from acc_gym.drivers.slots import SlotDrivers, SlotView
 from acc_gym.envs import _kernel as K
+from acc_gym.envs.car import Car, true_fields
 from acc_gym.envs.config import EnvConfig
 from acc_gym.envs.observation import B0, B1, append_features, feature_bounds
 from acc_gym.envs.reward import CriteriaReward, MarginReward, StepIndicators
 from acc_gym.evaluation.scoring import judged_tau1, score_record
 from acc_gym.evaluation.trace import EgoTrace
-from acc_gym.envs.car import Car, true_fields
 from acc_gym.scenarios.spec import Scenario
 from acc_gym.scenarios.world import ABSENT_X, scene_arrays
 from acc_gym.simulation.single_lane import SingleLaneWorld

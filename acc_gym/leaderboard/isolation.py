@@ -316,7 +316,6 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
     deadline_total = started + budget
     ctl = None
     try:
-        import gymnasium as gym
         import numpy as np
 
         import acc_gym  # noqa: F401  (registers the ids)

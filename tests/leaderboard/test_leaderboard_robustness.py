@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from acc_gym.leaderboard import load_results, run_leaderboard
-from acc_gym.leaderboard.results import csv_text, markdown, text_table
+from acc_gym.leaderboard.results import csv_text, text_table
 from acc_gym.leaderboard.robustness import HEADER, format_cell, local_cell, slots
 
 HERE = Path(__file__).resolve().parent
