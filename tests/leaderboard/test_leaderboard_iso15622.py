@@ -123,3 +123,8 @@ def test_after_a_failure_in_the_string_stability_column_the_battery_runs_on_a_fr
     assert c["iso15622"] == expected
     # the wave column sends the five rings' rows of its one position at once: it fails there too, on its own
     assert "deliberate failure on a batch" in c["waves"]["failed_to_run"] and "the wave column" in c["waves"]["failed_to_run"]
+    # the robustness column gives each episode a copy of its own (one row each): measured on a fresh
+    # controller after the failures, as the linear ACC it is
+    from acc_gym.leaderboard.robustness import local_cell
+
+    assert c["robustness"] == local_cell("acc")
