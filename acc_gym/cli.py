@@ -100,6 +100,7 @@ COMMANDS = (
     ("robustness", "acc_gym.commands.robustness"),
     ("conformance", "acc_gym.commands.conformance"),
     ("ring", "acc_gym.commands.ring"),
+    ("run", "acc_gym.commands.run"),
 )
 
 

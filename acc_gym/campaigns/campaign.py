@@ -201,13 +201,15 @@ def _controller_ref(controller) -> str:
     return controller
 
 
-def run_campaign(suite, hours: float, controller: str, out_dir, *, split: str = "test", root_seed: int | None = None,
+def run_campaign(suite, hours: float | None, controller: str, out_dir, *, split: str = "test", root_seed: int | None = None,
                  workers: int = 1, scheduler=None, chunk_size: int = DEFAULT_CHUNK_SIZE,
                  max_chunks: int | None = None, confidence: float = 0.95, on_chunk=None,
                  on_start=None) -> dict:
     """Run (or resume) a campaign of ``hours`` of ``suite``'s traffic with ``controller``; return its summary.
 
-    ``suite``: a registered name (``"singlelane-v3"``) or a suite object; ``split``: ``"dev"`` or
+    ``suite``: a registered name (``"singlelane-v3"``), a suite object, or an OpenSCENARIO variation
+    (:class:`acc_gym.campaigns.sweep.VariationSweep`, with ``hours=None``: every concrete scenario
+    of it); ``split``: ``"dev"`` or
     ``"test"``; ``root_seed``: default the split's own (see :mod:`acc_gym.campaigns.plan`);
     ``workers``: local processes (1: this process), or the ``LocalCluster`` size with
     ``scheduler="local"``; ``scheduler``: a Dask scheduler address, ``"local"`` or a
@@ -218,7 +220,10 @@ def run_campaign(suite, hours: float, controller: str, out_dir, *, split: str = 
     chunks already there, and all of them). Results go to ``out_dir``.
     """
     require_pyarrow()
-    hours = check_hours(hours)
+    sweep = hasattr(suite, "n_points")  # an OpenSCENARIO variation: all its scenarios, no hours (campaigns.sweep)
+    if sweep and hours is not None:
+        raise CampaignError("a variation's campaign runs every concrete scenario of it: hours do not apply")
+    hours = 0.0 if sweep else check_hours(hours)
     chunk_size = check_positive_int("chunk size", chunk_size)
     workers = check_positive_int("workers", workers)
     if max_chunks is not None:

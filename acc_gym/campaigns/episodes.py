@@ -122,6 +122,8 @@ def run_chunk(task: ChunkTask) -> list[dict]:
     from acc_gym.standards.r157 import REFERENCE
 
     suite = resolve_suite(task.suite)
+    if hasattr(suite, "run_chunk"):  # an OpenSCENARIO variation runs its files (acc_gym.campaigns.sweep)
+        return suite.run_chunk(task)
     controller = load_controller(task.controller)
     env = gym.make(task.env_id)
     judge: dict = {}  # the careful driver's env and controller, made at the chunk's first collision

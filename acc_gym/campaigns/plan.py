@@ -117,6 +117,11 @@ def scenario_at(suite, index: int, split: str, root_seed: int):
 
 def plan_length(suite, split: str, root_seed: int, hours: float) -> tuple[int, float]:
     """``(n, seconds)``: how many scenarios make ``hours`` of traffic, and their total duration."""
+    if hasattr(suite, "n_points"):  # an OpenSCENARIO variation (acc_gym.campaigns.sweep): all its scenarios
+        if suite.n_points == 0:
+            raise CampaignError(f"{suite.name}: the variation has no concrete scenario that satisfies the "
+                                f"template's constraints")
+        return int(suite.n_points), 0.0
     target = hours * HOUR
     total, n = 0.0, 0
     if root_seed == suite.root_seed(split) and hasattr(suite, "stream"):

@@ -45,6 +45,8 @@ QUICK = {
     "python benchmarks/conformance.py": " --controllers acc",
     "acc-gym string-stability acc --time-gap 1.0 --actuator-delay 1.0": " --frequencies 0.02 0.1",
     "acc-gym evaluate acc --env acc_gym/SingleLane-v1 --episodes 20 --sensors typical --actuators typical": None,
+    "acc-gym run alks:4.4.2 --controller acc --plot cutin.png": None,
+    "python benchmarks/openscenario_bundle.py --table": " --controllers acc constant",
     "acc-gym robustness ppo --plot robustness.png": " --episodes 3 --lags 0 0.5 --delays 0.5 --noise 1 "
                                                    "--no-string-stability",
 }
