@@ -101,6 +101,7 @@ COMMANDS = (
     ("conformance", "acc_gym.commands.conformance"),
     ("ring", "acc_gym.commands.ring"),
     ("run", "acc_gym.commands.run"),
+    ("validate", "acc_gym.commands.validate"),
 )
 
 

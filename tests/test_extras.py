@@ -33,6 +33,7 @@ EXTRA_CODE = {
     "campaign": ["acc_gym/campaigns"],  # acc-gym campaign (pyarrow)
     "dist": ["acc_gym/campaigns"],  # acc-gym campaign --scheduler (dask.distributed)
     "docs": ["docs/_ext", "examples/record_video.py"],  # mkdocs build --strict (the docstring extension), the docs video
+    "osc": ["acc_gym/scenarios/openscenario/check.py", "acc_gym/commands/validate.py"],  # acc-gym validate
     "bench": ["benchmarks/bench_env.py", "benchmarks/sumo_peer.py"],  # bench_env.py --peers
 }
 # modules a file imports for another extra's feature: (extra, file) -> {module: the extra that has it}
@@ -123,6 +124,7 @@ COMMANDS = {  # what each extra's documentation shows, made small; run in a scra
             "--eval-episodes", "1", "--seed", "0", "--out", "run", "--no-progress"],
            ["acc-gym", "evaluate", "run", "--env", "acc_gym/CarFollowing-v1", "--episodes", "1"]],
     "ncap": [["acc-gym", "conformance", "acc", "--standard", "ncap", "--json"]],
+    "osc": [["acc-gym", "validate", "alks:4.4.2", "--json"]],
     "docs": [["mkdocs", "build", "--strict", "-f", str(REPO / "mkdocs.yml"), "-d", "{tmp}/site"]],
     "bench": [["python", str(REPO / "benchmarks" / "bench_env.py"), "--peers", "--steps", "50", "--vector-steps", "5",
                "--num-envs", "4", "--repeats", "1", "--cases", "env_idm", "--workers", "1", "--json"]],
@@ -162,5 +164,7 @@ def test_a_fresh_install_of_each_extra_runs_its_documented_command(extra, tmp_pa
     if extra == "bench":  # both peers ran: SUMO (libsumo) and cavsandbox
         out = json.loads(last.stdout)
         assert out["sumo_steps_per_s"] > 0 and out["column_ratio_cavsandbox"] is not None, out
+    if extra == "osc":  # the shipped bundle passes ASAM's checker
+        assert json.loads(last.stdout)["passed"] is True
     if extra == "ncap":  # scored by Euro NCAP's calculator, not just driven
         assert json.loads(last.stdout)["standards"]["ncap"]["score_percent"] is not None

@@ -261,10 +261,14 @@ class _Reader:
             raise d.error(f"dynamicsShape {shape!r} is not one of {SHAPES}")
         if dim not in DIMENSIONS:
             raise d.error(f"dynamicsDimension {dim!r} is not one of {DIMENSIONS}")
-        if shape != "step" and dim != "rate" and not value > 0:
-            raise d.error(f"a {shape} transition by {dim} needs a value > 0, got {value!r}")
+        if value < 0 and dim == "rate":  # decided: the target gives the direction (esmini's examples write -4)
+            self.note(f"{d.file}:{d.line}: a negative rate ({value:g}) read as its magnitude (the standard's range "
+                      f"is [0, inf[)")
+            value = -value
         if value < 0:
-            raise d.error(f"a transition's value must be >= 0, got {value!r}")
+            raise d.error(f"a transition's value must be >= 0 (the standard's range is [0, inf[), got {value!r}")
+        if shape != "step" and dim != "rate" and value == 0:
+            shape = "step"  # decided: a transition over no time or distance is a step (esmini reads it so)
         if d.attrib.get("followingMode") not in (None, "position"):
             raise d.error(f"followingMode {d.attrib['followingMode']!r} is not read here (only 'position')")
         return M.Dynamics(shape, dim, value)

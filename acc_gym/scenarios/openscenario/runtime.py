@@ -484,8 +484,12 @@ class World:
 
     # --- actions
     def start(self) -> None:
-        """Apply the Init actions (in file order) at t = 0 and start the stories."""
-        for ent, action in self.sc.init:
+        """Apply the Init actions at t = 0 and start the stories. Init's actions all happen at
+        t = 0; decided: the positions are applied first (in file order: a relative position may
+        name an entity placed before it), then the others in file order, so a speed written
+        before its entity's position (as esmini's examples have it) is read."""
+        first = [(e, a) for e, a in self.sc.init if isinstance(a.payload, M.TeleportAction)]
+        for ent, action in first + [(e, a) for e, a in self.sc.init if not isinstance(a.payload, M.TeleportAction)]:
             self._apply(action, None, [ent] if ent is not None else [])
         for b in self.bodies.values():
             if not b.placed:

@@ -1,0 +1,52 @@
+"""Files written for another tool: esmini's example scenarios (MPL-2.0, ``data/esmini``, see its
+NOTICE.md) read and run here, and the controllers behave as physics says on them."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from acc_gym.evaluation.runner import load_controller
+from acc_gym.scenarios.openscenario import read, run_file
+
+DATA = Path(__file__).parent / "data" / "esmini" / "xosc"
+# a lead slower than the ego, braking or standing in its lane: cruise control runs into it, ACC does not
+LEADS = ["acc-test", "cut-in_simple", "slow-lead-vehicle", "straight_500m"]
+
+
+def _run(name, controller, **kw):
+    path = DATA / f"{name}.xosc"
+    return run_file(path, load_controller(controller), duration=60, **kw)
+
+
+@pytest.mark.parametrize("name", LEADS)
+def test_acc_stops_short_of_what_cruise_control_runs_into(name):
+    acc, tr = _run(name, "acc")
+    assert not acc["collided"] and acc["min_gap"] > 0, acc
+    assert np.all(np.isfinite(tr.s)) and np.all(tr.v >= 0)
+    cc, _ = _run(name, "constant")
+    assert cc["collided"] and cc["min_gap"] <= 0, cc
+
+
+def test_a_lead_that_decelerates_is_followed_without_collision():
+    res, tr = _run("alks_decelerate", "acc")
+    assert not res["collided"] and res["min_gap"] > 20  # the ACC keeps its time gap
+    assert tr.a[:, tr.ego_index].min() > -3.0  # comfortable braking only
+
+
+def test_a_negative_rate_is_read_as_its_magnitude_and_said():
+    sc = read(DATA / "cut-in_simple.xosc")
+    notes = [n for n in sc.out_of_scope if "negative rate (-5)" in n]
+    assert notes and "cut-in_simple.xosc:127" in notes[0]
+    res, tr = _run("cut-in_simple", "acc")
+    j = tr.names.index("OverTaker")
+    assert tr.a[:, j].min() == pytest.approx(-5.0)  # it brakes at 5 m/s^2, as the file means
+    assert tr.v[-1, j] == pytest.approx(0.0)
+
+
+def test_a_linear_transition_over_no_time_is_a_step_and_init_order_does_not_matter():
+    res, tr = _run("override_bb", "acc")  # Init: SpeedAction linear, time 0, before the TeleportAction
+    assert tr.v[0, tr.ego_index] == pytest.approx(90 / 3.6)
+    sc = read(DATA / "straight_500m.xosc")  # Init: the ego's SpeedAction is written before its position
+    res, tr = _run("straight_500m", "acc", scenario=sc)
+    assert tr.v[0, tr.ego_index] == pytest.approx(20.0) and tr.v[0, tr.names.index("Target")] == 0.0
