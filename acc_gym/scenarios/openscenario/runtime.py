@@ -486,10 +486,11 @@ class World:
     def start(self) -> None:
         """Apply the Init actions at t = 0 and start the stories. Init's actions all happen at
         t = 0; decided: the positions are applied first (in file order: a relative position may
-        name an entity placed before it), then the others in file order, so a speed written
-        before its entity's position (as esmini's examples have it) is read."""
-        first = [(e, a) for e, a in self.sc.init if isinstance(a.payload, M.TeleportAction)]
-        for ent, action in first + [(e, a) for e, a in self.sc.init if not isinstance(a.payload, M.TeleportAction)]:
+        name an entity placed before it), then the trajectories (one places an entity that has
+        no position at its first vertex, as esmini does), then the others in file order, so a
+        speed written before its entity's position (as esmini's examples have it) is read."""
+        order = {M.TeleportAction: 0, M.FollowTrajectoryAction: 1}
+        for ent, action in sorted(self.sc.init, key=lambda ea: order.get(type(ea[1].payload), 2)):
             self._apply(action, None, [ent] if ent is not None else [])
         for b in self.bodies.values():
             if not b.placed:
@@ -536,8 +537,12 @@ class World:
                 if h is not None:
                     body.h = h
                 continue
+            if not body.placed and element is None and isinstance(p, M.FollowTrajectoryAction) and p.vertices:
+                body.s, body.t, _h = self.place(p.vertices[0][1])  # Init: the trajectory's start is the position
+                body.placed = True
             if not body.placed:
-                raise OpenScenarioError(f"action {action.name!r} on {name!r} before it has a position",
+                raise OpenScenarioError(f"{type(p).__name__} {action.name!r} on {name!r} before the entity has a "
+                                        f"position (Init gives none: a TeleportAction or a trajectory places it)",
                                         action.where.file, action.where.line)
             if isinstance(p, M.FollowTrajectoryAction):
                 pts = []
@@ -679,7 +684,10 @@ class World:
         return compare(v["rule"], ttc, v["value"])
 
     def _trigger(self, trig: M.Trigger | None) -> bool:
-        if trig is None:
+        """Whether a start trigger fires now. Decided: a missing or an empty one (``<StartTrigger/>``,
+        as esmini's examples write it) fires at once; stop triggers are asked only when they have
+        a condition group (an empty stop trigger never fires)."""
+        if trig is None or not trig.groups:
             return True
         out = False
         who: list = []

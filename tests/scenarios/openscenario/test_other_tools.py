@@ -28,10 +28,13 @@ def test_acc_stops_short_of_what_cruise_control_runs_into(name):
     assert cc["collided"] and cc["min_gap"] <= 0, cc
 
 
-def test_a_lead_that_decelerates_is_followed_without_collision():
-    res, tr = _run("alks_decelerate", "acc")
-    assert not res["collided"] and res["min_gap"] > 20  # the ACC keeps its time gap
-    assert tr.a[:, tr.ego_index].min() > -3.0  # comfortable braking only
+def test_a_lead_that_brakes_hard_to_a_stop():
+    res, tr = _run("alks_decelerate", "acc")  # its Act's StartTrigger is empty: it starts with the story
+    j = tr.names.index("TargetDecelerate")
+    assert tr.a[:, j].min() == pytest.approx(-7.0) and tr.v[-1, j] == 0.0  # the lead brakes at 7 m/s^2 to a stop
+    assert not res["collided"] and res["min_gap"] > 2.0 and tr.v[-1, tr.ego_index] < 0.1 * tr.v[0, tr.ego_index]
+    cc, _ = _run("alks_decelerate", "constant")
+    assert cc["collided"]
 
 
 def test_a_negative_rate_is_read_as_its_magnitude_and_said():
@@ -50,3 +53,15 @@ def test_a_linear_transition_over_no_time_is_a_step_and_init_order_does_not_matt
     sc = read(DATA / "straight_500m.xosc")  # Init: the ego's SpeedAction is written before its position
     res, tr = _run("straight_500m", "acc", scenario=sc)
     assert tr.v[0, tr.ego_index] == pytest.approx(20.0) and tr.v[0, tr.names.index("Target")] == 0.0
+
+
+def test_a_trajectory_in_init_places_its_entity_at_the_first_vertex():
+    sc = read(DATA / "alks_pedestrian.xosc")  # the pedestrian's Init has only a FollowTrajectoryAction
+    res, tr = _run("alks_pedestrian", "acc", scenario=sc)
+    j = tr.names.index("Pedestrian")
+    assert float(sc.parameters["PedestrianS"]) == 110.0
+    assert (tr.s[0, j], tr.y[0, j]) == pytest.approx((110.0, -4.0))
+    walking = tr.t > 2.0 + 1e-9  # its SpeedAction (1 m/s) starts when SimulationTime > 2 s
+    assert np.all(tr.y[~walking, j] == -4.0)
+    assert np.diff(tr.y[walking, j]) == pytest.approx(1.0 * 0.2)  # then it walks along the polyline at 1 m/s
+    assert not res["collided"]
