@@ -102,6 +102,7 @@ COMMANDS = (
     ("ring", "acc_gym.commands.ring"),
     ("run", "acc_gym.commands.run"),
     ("validate", "acc_gym.commands.validate"),
+    ("export", "acc_gym.commands.export"),
 )
 
 

@@ -78,6 +78,8 @@ def test_bench_score_json_keys():
     assert out["ratio"] == pytest.approx(out["reference_us"] / out["compiled_us"], rel=1e-6)
 
 
+# a benchmark's JSON keys (tens of seconds): with the slow tests (python -m pytest -m slow)
+@pytest.mark.slow
 def test_bench_campaign_json_keys():
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_campaign.py"), "--json", "--repeats", "1",
                         "--suite", "ncap-v1", "--hours", "0.005", "--chunk-size", "1"], capture_output=True, text=True,
@@ -227,6 +229,8 @@ def test_bench_env_split_counts_every_autoreset_and_only_them():
     assert registry.ScenarioType.sample_params.__name__ == "sample_params"
 
 
+# a benchmark's JSON keys (tens of seconds): with the slow tests (python -m pytest -m slow)
+@pytest.mark.slow
 def test_bench_leaderboard_json_keys():
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_leaderboard.py"), "--json", "--repeats", "1",
                         "--rows", "4", "--round-trips", "20", "--leaderboard-args",
@@ -241,6 +245,8 @@ def test_bench_leaderboard_json_keys():
     assert "ratio" not in out  # only with --against
 
 
+# a benchmark's JSON keys (tens of seconds): with the slow tests (python -m pytest -m slow)
+@pytest.mark.slow
 def test_bench_risk_json_keys():
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_risk.py"), "--json", "--quick", "--workers",
                         "1"], capture_output=True, text=True, check=True, cwd=ROOT)
@@ -325,6 +331,8 @@ def test_rl_curves_twin_curve_equals_training_the_twin_id(tmp_path):
         rl_curves.twin_curve(cf, "acc_gym/CarFollowing-v0", tmp_path)
 
 
+# a benchmark's JSON keys (tens of seconds): with the slow tests (python -m pytest -m slow)
+@pytest.mark.slow
 def test_bench_startup_json_keys():
     r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_startup.py"), "--json", "--repeats", "1"],
                        capture_output=True, text=True, check=True, cwd=ROOT)

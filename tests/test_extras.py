@@ -33,7 +33,8 @@ EXTRA_CODE = {
     "campaign": ["acc_gym/campaigns"],  # acc-gym campaign (pyarrow)
     "dist": ["acc_gym/campaigns"],  # acc-gym campaign --scheduler (dask.distributed)
     "docs": ["docs/_ext", "examples/record_video.py"],  # mkdocs build --strict (the docstring extension), the docs video
-    "osc": ["acc_gym/scenarios/openscenario/check.py", "acc_gym/commands/validate.py"],  # acc-gym validate
+    "osc": ["acc_gym/scenarios/openscenario/check.py", "acc_gym/commands/validate.py",  # acc-gym validate
+            "acc_gym/scenarios/openscenario/writer.py", "acc_gym/commands/export.py"],  # acc-gym export
     "bench": ["benchmarks/bench_env.py", "benchmarks/sumo_peer.py"],  # bench_env.py --peers
 }
 # modules a file imports for another extra's feature: (extra, file) -> {module: the extra that has it}
@@ -124,7 +125,8 @@ COMMANDS = {  # what each extra's documentation shows, made small; run in a scra
             "--eval-episodes", "1", "--seed", "0", "--out", "run", "--no-progress"],
            ["acc-gym", "evaluate", "run", "--env", "acc_gym/CarFollowing-v1", "--episodes", "1"]],
     "ncap": [["acc-gym", "conformance", "acc", "--standard", "ncap", "--json"]],
-    "osc": [["acc-gym", "validate", "alks:4.4.2", "--json"]],
+    "osc": [["acc-gym", "validate", "alks:4.4.2", "--json"],
+            ["acc-gym", "export", "ncap/ccrs/30", "--controller", "acc", "--out", "exported", "--json"]],
     "docs": [["mkdocs", "build", "--strict", "-f", str(REPO / "mkdocs.yml"), "-d", "{tmp}/site"]],
     "bench": [["python", str(REPO / "benchmarks" / "bench_env.py"), "--peers", "--steps", "50", "--vector-steps", "5",
                "--num-envs", "4", "--repeats", "1", "--cases", "env_idm", "--workers", "1", "--json"]],
@@ -164,7 +166,7 @@ def test_a_fresh_install_of_each_extra_runs_its_documented_command(extra, tmp_pa
     if extra == "bench":  # both peers ran: SUMO (libsumo) and cavsandbox
         out = json.loads(last.stdout)
         assert out["sumo_steps_per_s"] > 0 and out["column_ratio_cavsandbox"] is not None, out
-    if extra == "osc":  # the shipped bundle passes ASAM's checker
-        assert json.loads(last.stdout)["passed"] is True
+    if extra == "osc":  # an export passes ASAM's checker (the validate command before it: the shipped bundle)
+        assert json.loads(last.stdout)["checked"] is True
     if extra == "ncap":  # scored by Euro NCAP's calculator, not just driven
         assert json.loads(last.stdout)["standards"]["ncap"]["score_percent"] is not None

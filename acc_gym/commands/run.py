@@ -26,8 +26,10 @@ def add_parser(sub) -> None:
     p.add_argument("--duration", type=float, default=600.0,
                    help="stop after this [s] if the file's stop trigger has not fired (default 600)")
     p.add_argument("--set-speed", type=float, default=None,
-                   help="the ego's set speed [m/s] (default: its speed when its controller is activated)")
-    p.add_argument("--time-gap", type=float, default=1.5, help="the nominal time gap [s] (default 1.5)")
+                   help="the ego's set speed [m/s] (default: the ego controller's setSpeed property, else its "
+                        "speed when its controller is activated)")
+    p.add_argument("--time-gap", type=float, default=None,
+                   help="the nominal time gap [s] (default: the ego controller's timeGap property, else 1.5)")
     p.add_argument("--drivers", default=None, metavar="KIND",
                    help="human-like drivers of this population (typical, atypical, malicious, naturalistic) take "
                         "over the other moving vehicles' longitudinal control")

@@ -419,7 +419,8 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
             kept = {}
             run_jobs([k], True, lambda j, run: kept.setdefault("run", run))
             run = kept["run"]
-            conn.send(("trace", {"position": k, "score": float(run.info["score"]), "trace": run.trace()}))
+            conn.send(("trace", {"position": k, "score": float(run.info["score"]), "trace": run.trace(),
+                                 "time_gap": declared}))
         killed = None  # why the trusted side killed a controller process replaced since (a limit)
         sound = True  # the sandbox answered every round trip so far (its socket is in step)
         fresh = in_flight  # past every slot used so far: a column's copies are fresh ones

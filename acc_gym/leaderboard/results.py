@@ -56,7 +56,9 @@ Files (all written atomically: a temporary file in the same directory, then
   :mod:`acc_gym.leaderboard.sandbox`) could read it from the runner's memory or files;
 * ``results.csv`` -- the ranking table, one row per controller;
 * ``leaderboard.md`` -- the same as a Markdown table;
-* ``report.html`` -- see :mod:`acc_gym.leaderboard.report`.
+* ``report.html`` -- see :mod:`acc_gym.leaderboard.report`;
+* ``failures/`` -- each controller's failing worst episode as OpenSCENARIO (with the ``osc``
+  extra; :mod:`acc_gym.leaderboard.failures`), named by its entry's ``failing_episode``.
 """
 
 from __future__ import annotations

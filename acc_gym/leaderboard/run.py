@@ -433,13 +433,21 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                       "sandbox": sandbox}
         risks = {ref: leaderboard_risk(resolved[ref], **risk, run_kwargs=run_kwargs) for ref, o in outcomes.items()
                  if o.status == "ok"}
-    entries, trace_map = [], {}
+    trace_map = {}
     for ref, o in outcomes.items():
-        notes = []
         if o.trace is not None:
             ep = o.episodes[o.trace["position"]]
             scenario = next((j.scenario for j in jobs if (j.suite, j.episode) == (ep["suite"], ep["episode"])), None)
             trace_map[ref] = {**o.trace, "scenario": scenario}  # the report re-scores it to say what cost points
+    failing = {}
+    if staging is not None and trace_map:  # each failing worst episode as OpenSCENARIO (acc_gym.leaderboard.failures)
+        from acc_gym.leaderboard.failures import write_failing_episodes
+
+        failing = write_failing_episodes(trace_map, {ref: o.episodes for ref, o in outcomes.items()}, staging)
+    entries = []
+    for ref, o in outcomes.items():
+        notes = []
+        if o.trace is not None:
             recorded = o.episodes[o.trace["position"]]["score"]
             if o.trace["score"] != recorded:
                 notes.append(f"not deterministic: its worst episode scored {recorded:.3f}, then "
@@ -449,6 +457,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                         "log": f"logs/{Path(o.log).name}" if staging is not None else o.log,
                         "summary": summarise_controller(o.episodes, names) if o.status == "ok" else None,
                         "episodes": o.episodes, **({"risk": risks.get(ref)} if risk is not None else {}),
+                        **({"failing_episode": failing[ref]} if ref in failing else {}),
                         **({"string_stability": o.string_stability} if string_stability else {}),
                         **({"iso15622": o.iso15622} if iso15622 else {}),
                         **({"waves": o.waves} if waves else {}),

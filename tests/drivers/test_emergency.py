@@ -27,9 +27,10 @@ def entries_and_releases(tr):
 LEAD_BRAKE = {"typical": 6.0, "atypical": 6.0, "malicious": 8.0, "naturalistic": 6.0}
 
 
-# typical drivers had the bug (above) and run by default; the other kinds (about 40 s each on
-# one core) run with the slow tests (python -m pytest -m slow), to keep the default run short
-@pytest.mark.parametrize("kind", [k if k == "typical" else pytest.param(k, marks=pytest.mark.slow) for k in LEAD_BRAKE])
+# every kind (about 40 s each on one core) runs with the slow tests (python -m pytest -m slow), to
+# keep the default run short
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", list(LEAD_BRAKE))
 def test_no_brake_release_on_entering_an_emergency(kind):
     rng = np.random.default_rng([23, list(LEAD_BRAKE).index(kind)])
     speeds = rng.uniform(5.0, 35.0, N)

@@ -45,10 +45,10 @@ def check_mode_semantics(params, tr):
     assert np.all(a_des[brake] < a_sail[brake] + 1e-7)
 
 
-# the naturalistic population (the environments' default drivers) runs by default; each pure
-# kind (25-40 s on one core) runs with the slow tests (python -m pytest -m slow)
-@pytest.mark.parametrize("kind", [k if k == "naturalistic" else pytest.param(k, marks=pytest.mark.slow)
-                                  for k in KINDS])
+# every kind (25-80 s on one core) runs with the slow tests (python -m pytest -m slow), to keep the
+# default run short
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", KINDS)
 def test_every_stop_behind_a_stopped_vehicle_ends_braking_near_the_standstill_gap(kind):
     params, tr = approach(kind, seed=0)
     v, gap, mode = tr.v[:, :, 1], tr.gap[:, :, 1], tr.mode[:, :, 1]

@@ -62,7 +62,8 @@ def test_the_vector_env_reports_each_scene_so_far():
     assert reports == singles
 
 
-@pytest.mark.parametrize("start_method", ["spawn", "forkserver"])
+# forkserver (Python 3.14's default on Linux) runs by default; spawn (about 25 s) with the slow tests
+@pytest.mark.parametrize("start_method", [pytest.param("spawn", marks=pytest.mark.slow), "forkserver"])
 def test_sb3_subprocess_workers_find_the_ids_when_acc_gym_is_imported_inside_main(tmp_path, start_method):
     """Both ways -- acc_gym.make_vec_env and the qualified id given to SB3's own
     make_vec_env -- under both start methods that do not inherit the parent's registry; one

@@ -38,6 +38,7 @@ class Entity:
     max_deceleration: float | None  # [m/s^2]
     has_controller: bool  # an ObjectController is declared
     where: Where
+    controller_properties: dict = field(default_factory=dict)  # its Controller's Properties (name -> text)
 
     @property
     def front(self) -> float:
@@ -77,6 +78,19 @@ class SpeedAction:
     relative_to: str | None = None  # RelativeTargetSpeed's entityRef
     value_type: str = "delta"  # "delta" or "factor"
     continuous: bool = False
+
+
+@dataclass(frozen=True)
+class SpeedProfileAction:
+    """A speed profile followed by position: ``entries`` of ``(time, speed)``, each ``time``
+    the duration [s] from the previous entry (the first: from the action's start; None: at
+    the dynamic constraints' limit), each ``speed`` [m/s] absolute or, with ``relative_to``,
+    added to that entity's speed when the action starts."""
+
+    entries: tuple
+    relative_to: str | None = None
+    max_acceleration: float | None = None  # [m/s^2] DynamicConstraints
+    max_deceleration: float | None = None  # [m/s^2]
 
 
 @dataclass(frozen=True)

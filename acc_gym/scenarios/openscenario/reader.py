@@ -11,7 +11,8 @@ lanes).
 What is read (decided here; ``docs/openscenario.md`` has the table):
 
 * actions: SpeedAction (step, linear, cubic, sinusoidal dynamics by time, distance or rate;
-  absolute and relative targets, continuous or not), LongitudinalDistanceAction without
+  absolute and relative targets, continuous or not), SpeedProfileAction (followingMode
+  position), LongitudinalDistanceAction without
   dynamic constraints, LaneChangeAction (absolute or relative target lane, target lane
   offset), LaneOffsetAction, TeleportAction, ActivateControllerAction;
 * conditions: SimulationTime, StoryboardElementState, Parameter (the parameters do not
@@ -199,11 +200,18 @@ class _Reader:
             ms = self.get(perf, "maxSpeed", scope, default=None)
             ma = self.get(perf, "maxAcceleration", scope, default=None)
             md = self.get(perf, "maxDeceleration", scope, default=None)
+        props = {}
+        oc = so.find("ObjectController")
+        ctrl = None if oc is None else oc.find("Controller")  # an inline one (a catalog's: its properties unread)
+        if ctrl is not None and ctrl.find("Properties") is not None:
+            for pr in ctrl.find("Properties").findall("Property"):
+                props[str(self.get(pr, "name", self.scope, "string"))] = str(self.get(pr, "value", self.scope,
+                                                                                      "string"))
         return M.Entity(name=name, category=category, kind=kind, length=length, width=width,
                         center_x=self.get(centre, "x", scope, default=0.0),
                         center_y=self.get(centre, "y", scope, default=0.0), max_speed=ms, max_acceleration=ma,
-                        max_deceleration=md, has_controller=so.find("ObjectController") is not None,
-                        where=self.where(so))
+                        max_deceleration=md, has_controller=oc is not None, where=self.where(so),
+                        controller_properties=props)
 
     # --- road
     def road(self) -> M.Road:
@@ -306,6 +314,8 @@ class _Reader:
                     continuous=bool(self.get(a, "continuous", scope, "boolean")),
                     displacement=str(self.get(a, "displacement", scope, "string", default="trailingReferencedEntity"))),
                     "longitudinal", w)
+            if a.tag == "SpeedProfileAction":
+                return M.Action(name, self.speed_profile(a, scope), "longitudinal", w)
             raise a.error(f"the longitudinal action <{a.tag}> is not read here")
         if c.tag == "LateralAction":
             a = c.only("lateral action")
@@ -441,6 +451,39 @@ class _Reader:
             return M.SpeedAction(dyn, self.get(t, "value", scope), str(self.get(t, "entityRef", scope, "string")), vt,
                                  bool(self.get(t, "continuous", scope, "boolean", default=False)))
         raise t.error(f"<{t.tag}> is not a speed target read here")
+
+    def speed_profile(self, a: Node, scope: Scope) -> M.SpeedProfileAction:
+        """SpeedProfileAction (1.2+), ``followingMode`` position: the speed linear in time
+        between entries (see :class:`~acc_gym.scenarios.openscenario.runtime.ProfileRun`)."""
+        mode = str(self.get(a, "followingMode", scope, "string"))
+        if mode != "position":
+            raise a.error(f"SpeedProfileAction followingMode {mode!r} is not read here (position is: the speeds "
+                          f"reached at the entries' times; 'follow' smooths them by a controller's jerk limits)")
+        ma = md = None
+        dc = a.find("DynamicConstraints")
+        if dc is not None:
+            ma = self.get(dc, "maxAcceleration", scope, default=None)
+            md = self.get(dc, "maxDeceleration", scope, default=None)
+            for what, x in (("maxAcceleration", ma), ("maxDeceleration", md)):
+                if x is not None and not x > 0:
+                    raise dc.error(f"DynamicConstraints {what} must be > 0, got {x!r}")
+        rel = self.get(a, "entityRef", scope, "string", default=None)
+        entries = []
+        for e in a.findall("SpeedProfileEntry"):
+            tv = self.get(e, "time", scope, default=None)
+            v = self.get(e, "speed", scope)
+            if tv is not None and tv < 0:
+                raise e.error(f"a SpeedProfileEntry's time must be >= 0 (a duration from the previous entry), "
+                              f"got {tv!r}")
+            if rel is None and v < 0:
+                raise e.error(f"a SpeedProfileEntry's speed must be >= 0 (no reversing here), got {v!r}")
+            if tv is None and (ma is None or md is None):
+                raise e.error("a SpeedProfileEntry without a time needs DynamicConstraints with maxAcceleration "
+                              "and maxDeceleration (it is reached at those limits)")
+            entries.append((tv, v))
+        if not entries:
+            raise a.error("a SpeedProfileAction needs at least one SpeedProfileEntry")
+        return M.SpeedProfileAction(tuple(entries), None if rel is None else str(rel), ma, md)
 
     # --- conditions
     def trigger(self, node: Node | None, scope: Scope) -> M.Trigger | None:

@@ -14,7 +14,9 @@ give the contour). Two phases per step: the storyboard's triggers and actions an
 controller's decision from the snapshot at the step's start, then every entity moves.
 
 Decided here: the set speed is the ego's speed when its controller is activated (a driver
-engaging ACC sets it so) unless given; the nominal time gap is 1.5 s unless given. The run
+engaging ACC sets it so) and the nominal time gap is 1.5 s, unless given, or unless the ego's
+controller has the Properties ``setSpeed`` [m/s] and ``timeGap`` [s] (the package's exports
+write them). The run
 ends at the storyboard's stop trigger, when every story is complete (a file without a stop
 trigger), or at ``duration``. A collision is the ego's contour touching another's, or the
 radar target's gap reaching 0 (the package's definition, :mod:`acc_gym.evaluation.scoring`);
@@ -60,7 +62,7 @@ class Trace:
 
 
 def run_file(path, controller, *, parameters: dict | None = None, ego: str | None = None, dt: float = DT,
-             duration: float = MAX_DURATION, set_speed: float | None = None, time_gap: float = TIME_GAP,
+             duration: float = MAX_DURATION, set_speed: float | None = None, time_gap: float | None = None,
              sensor_range: float = 200.0, scenario: M.OpenScenario | None = None, drivers: str | None = None,
              driver_model: int | None = None, seed: int = 0):
     """Run ``controller`` (an object with SB3's ``predict``) as the ego of the file ``path``.
@@ -90,6 +92,7 @@ def run_file(path, controller, *, parameters: dict | None = None, ego: str | Non
     if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be a finite number > 0 [s], got {duration!r}")
     sc = scenario if scenario is not None else read(path, parameters=parameters, ego=ego)
+    set_speed, time_gap = _ego_settings(sc, set_speed, time_gap)
     world = World(sc)
     world.start()
     names = list(world.bodies)
@@ -164,6 +167,26 @@ def run_file(path, controller, *, parameters: dict | None = None, ego: str | Non
     return _result(sc, world, trace, ie, collided, collision_with, collision_t, set_speed, time_gap), trace
 
 
+def _ego_settings(sc: M.OpenScenario, set_speed, time_gap) -> tuple:
+    """The set speed and time gap given, else the ego's controller's Properties ``setSpeed``
+    [m/s] and ``timeGap`` [s] (as :mod:`~acc_gym.scenarios.openscenario.writer` writes them),
+    else None (the speed at activation) and :data:`TIME_GAP`."""
+    props = sc.entities[sc.ego].controller_properties
+    out = []
+    for value, key, default in ((set_speed, "setSpeed", None), (time_gap, "timeGap", TIME_GAP)):
+        if value is None and key in props:
+            try:
+                value = float(props[key])
+            except ValueError:
+                raise ValueError(f"{sc.path}: the ego's controller property {key}={props[key]!r} is not a "
+                                 f"number") from None
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{sc.path}: the ego's controller property {key}={props[key]!r} must be a "
+                                 f"finite number > 0")
+        out.append(default if value is None else value)
+    return tuple(out)
+
+
 def _trace(names, rows) -> Trace:
     t = np.array([r[0] for r in rows])
     cols = [np.array([r[k] for r in rows], dtype=float) for k in (1, 2, 3, 4)]
@@ -186,8 +209,10 @@ def _result(sc, world, tr: Trace, ie: int, collided, collision_with, collision_t
     if len(on) >= 2:
         sl = slice(on[0], on[-1] + 1)
         v_set = float(set_speed) if set_speed is not None else max(float(tr.v[on[0], ie]), 0.1)
+        d2, d3, a_y = _lateral(sc, tr, ie)
         ego = EgoTrace(t=tr.t[sl], v=tr.v[sl, ie], a=tr.a[sl, ie], gap=tr.gap[sl], v_lead=tr.v_lead[sl],
-                       a_lead=tr.a_lead[sl], lead_id=tr.lead[sl], set_speed=v_set, time_gap=time_gap)
+                       a_lead=tr.a_lead[sl], lead_id=tr.lead[sl], a_y=a_y[sl], d2=d2[sl], d3=d3[sl],
+                       set_speed=v_set, time_gap=time_gap)
         report = score_episode(ego).to_dict()
         # ISO 15622's envelope on the controlled drive (its requirements a drive does not exercise: not exercised)
         iso = check_drives([Drive.from_trace(Path(sc.path).name, ego)]).to_dict()
@@ -199,6 +224,28 @@ def _result(sc, world, tr: Trace, ie: int, collided, collision_with, collision_t
             "score": None if report is None else report["score"],
             "qualified": None if report is None else report["qualified"], "report": report, "iso15622": iso,
             "unsupported": list(sc.out_of_scope), "ignored": list(world.ignored), "notes": list(world.notes)}
+
+
+def _lateral(sc: M.OpenScenario, tr: Trace, ie: int) -> tuple:
+    """The ego's paper 003 distances and lateral acceleration per step: ``D2`` from its contour
+    to the outer edge of the driving lanes on its side of the reference line (the road edge),
+    ``D3`` to their inner edge (the carriageway's boundary line), and ``a_y`` [m/s^2] the
+    second difference of its lateral position (0 at the first and last step)."""
+    e = sc.entities[sc.ego]
+    t = tr.y[:, ie] + e.center_y  # [m] the contour's centre line
+    side = -1.0 if np.median(t) < 0 else 1.0  # the ego's side of the reference line
+    lanes = [ln for ln in sc.road.lanes.values() if ln.driving and ln.centre * side > 0]
+    if not lanes:
+        lanes = list(sc.road.lanes.values())
+    outer = max(side * ln.centre + 0.5 * ln.width for ln in lanes)  # [m] from the reference line, on the ego's side
+    inner = min(side * ln.centre - 0.5 * ln.width for ln in lanes)
+    d2 = outer - (side * t + 0.5 * e.width)
+    d3 = (side * t - 0.5 * e.width) - inner
+    a_y = np.zeros_like(t)
+    if len(t) >= 3:
+        dt = float(tr.t[1] - tr.t[0])
+        a_y[1:-1] = (t[2:] - 2.0 * t[1:-1] + t[:-2]) / (dt * dt)
+    return d2, d3, a_y
 
 
 def _drivers(world: World, kind: str | None, model: int | None, seed: int):

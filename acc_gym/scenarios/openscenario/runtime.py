@@ -79,6 +79,8 @@ class Body:
     def __init__(self, ent: M.Entity):
         self.ent = ent
         self.s = self.t = self.v = self.a = self.h = 0.0
+        self.course = None  # [rad] the direction of motion when it is not the heading (on a path whose vertices give
+        # the orientation), relative to the road; None: along the heading
         self.placed = False
         self.travelled = 0.0  # [m]
         self.still = 0.0  # [s] standing still for
@@ -204,6 +206,79 @@ class SpeedRun(_Run):
         return self.ref is None and t >= self.t0 + self.T - 1e-9
 
 
+class ProfileRun(_Run):
+    """A SpeedProfileAction, followingMode position (decided, as esmini reads the standard):
+    the vertices are the speed when the action starts, then each entry's speed (plus the
+    reference's speed at the start, with ``entityRef``) at the previous vertex's time plus
+    the entry's ``time``; the speed is linear in time between vertices (an entry with time 0
+    changes it at once) and held after the last. An entry without a time is reached at the
+    dynamic constraints' acceleration or deceleration; one that asks for more than those
+    limits takes longer (its time extended to the limit's, noted). The position is the exact
+    integral of that speed over each step."""
+
+    ref = None  # not continuous: nothing to follow
+
+    def __init__(self, action, element, body: Body, t0: float, world):
+        super().__init__(action, element)
+        sp: M.SpeedProfileAction = action.payload
+        offset = 0.0 if sp.relative_to is None else world._ref(sp.relative_to, action.where).v
+        T, V = [t0], [body.v]
+        for tv, v in sp.entries:
+            v = v + offset
+            if v < 0:
+                raise OpenScenarioError(f"action {action.name!r}: a profile speed of {v:g} m/s < 0 (no reversing "
+                                        f"here)", action.where.file, action.where.line)
+            dv = v - V[-1]
+            limit = sp.max_acceleration if dv > 0 else sp.max_deceleration
+            if tv is None:
+                tv = abs(dv) / limit
+            elif limit is not None and abs(dv) > limit * tv + 1e-12:
+                world.note(f"{action.where}: action {action.name!r}: a profile entry asks for "
+                           f"{abs(dv) / tv if tv > 0 else math.inf:g} m/s^2, beyond the dynamic constraints' "
+                           f"{limit:g} m/s^2: reached later, at the limit")
+                tv = abs(dv) / limit
+            T.append(T[-1] + tv)
+            V.append(v)
+        self.T, self.V = T, V
+        self.i = 0  # the segment [T[i], T[i + 1]] the last step ended in
+
+    def _at(self, i: int, tt: float) -> float:
+        """The speed on segment ``i`` at ``tt`` (its vertices' own values at its ends)."""
+        Ta, Tb = self.T[i], self.T[i + 1]
+        if tt <= Ta + 1e-9:
+            return self.V[i]
+        if tt >= Tb - 1e-9:
+            return self.V[i + 1]
+        return self.V[i] + (tt - Ta) / (Tb - Ta) * (self.V[i + 1] - self.V[i])
+
+    def speed_and_distance(self, t: float, dt: float, body: Body):
+        """Speed at ``t + dt`` (the speed reached: before a change at once there) and the
+        distance covered over ``[t, t + dt]``."""
+        T, V, n = self.T, self.V, len(self.T)
+        te = t + dt
+        i = self.i
+        while i < n - 1 and T[i + 1] <= t + 1e-9:  # segments ended before this step (and changes at once)
+            i += 1
+        d, tt, v_end = 0.0, t, None
+        while tt < te - 1e-12:
+            if i >= n - 1:  # past the last vertex: its speed held
+                d += V[-1] * (te - tt)
+                v_end = V[-1]
+                break
+            Tb = T[i + 1]
+            end = te if Tb >= te - 1e-9 else Tb
+            va, vb = self._at(i, tt), self._at(i, end)
+            d += 0.5 * (va + vb) * (end - tt)
+            tt, v_end = end, vb
+            if Tb <= te + 1e-9:
+                i += 1
+        self.i = i
+        return (V[-1] if v_end is None else v_end), d
+
+    def finished(self, t: float) -> bool:
+        return t >= self.T[-1] - 1e-9
+
+
 class DistanceRun(_Run):
     def __init__(self, action, element, world):
         super().__init__(action, element)
@@ -271,10 +346,13 @@ class TrajectoryRun(_Run):
     """A polyline followed by position: timed (each vertex reached at its time: the speed is
     each segment's length over its duration) or at the entity's own speed along the path."""
 
-    def __init__(self, action, element, body: Body, t0: float, points: list, world):
+    def __init__(self, action, element, body: Body, t0: float, points: list, world, headings: list | None = None):
         super().__init__(action, element)
         p: M.FollowTrajectoryAction = action.payload
         self.points = points  # [(s, t)] in road coordinates, resolved when the action starts
+        # the vertices' orientations, when every vertex gives one: the entity's heading between them (interpolated
+        # along each segment); the direction of motion is the segment's either way
+        self.headings = headings
         seg = [math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(points, points[1:])]
         self.cum = [0.0]
         for d in seg:
@@ -285,30 +363,56 @@ class TrajectoryRun(_Run):
             self.times = [(t0 if rel else 0.0) + scale * tv + offset for tv, _ in p.vertices]
         self.along = 0.0  # [m] distance along the path (untimed)
 
+    def _heading(self, k: int, f: float, course):
+        """The heading at the share ``f`` of segment ``k`` (``course``: its direction)."""
+        if self.headings is None:
+            return course
+        return self.headings[k] + f * (self.headings[k + 1] - self.headings[k])
+
     def _at_length(self, d: float):
+        """``(s, t, course, h)`` at the distance ``d`` along the path (``course`` the segment's
+        direction, ``h`` the heading; None: unchanged); at a vertex (within 1e-9 m) they are
+        the arriving segment's."""
         k = 0
-        while k < len(self.cum) - 2 and d > self.cum[k + 1]:
+        while k < len(self.cum) - 2 and d > self.cum[k + 1] + 1e-9:
             k += 1
         a, b = self.points[k], self.points[k + 1]
         L = self.cum[k + 1] - self.cum[k]
         f = 0.0 if L <= 0 else min(max((d - self.cum[k]) / L, 0.0), 1.0)
-        h = math.atan2(b[1] - a[1], b[0] - a[0]) if L > 0 else None
-        return a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), h
+        course = math.atan2(b[1] - a[1], b[0] - a[0]) if L > 0 else None
+        return a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), course, self._heading(k, f, course)
 
     def at(self, t: float):
-        """``(s, y, v, h)`` at time ``t`` (timed): before the first vertex's time at the first
-        vertex, after the last at the last (speed 0 while waiting, the last segment's after)."""
+        """``(s, y, v, course, h)`` at time ``t`` (timed): before the first vertex's time at the
+        first vertex, after the last at the last (speed 0 while waiting, the last segment's after)."""
         ts, pts = self.times, self.points
         if t <= ts[0]:
-            return pts[0][0], pts[0][1], 0.0, None
+            return pts[0][0], pts[0][1], 0.0, None, self._heading(0, 0.0, None)
         k = 0
         while k < len(ts) - 2 and t > ts[k + 1]:
             k += 1
         a, b = pts[k], pts[k + 1]
         f = min((t - ts[k]) / (ts[k + 1] - ts[k]), 1.0)
         L = math.hypot(b[0] - a[0], b[1] - a[1])
-        h = math.atan2(b[1] - a[1], b[0] - a[0]) if L > 0 else None
-        return a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), L / (ts[k + 1] - ts[k]), h
+        course = math.atan2(b[1] - a[1], b[0] - a[0]) if L > 0 else None
+        return (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), L / (ts[k + 1] - ts[k]), course,
+                self._heading(k, f, course))
+
+    def advances(self) -> bool:
+        """Whether the vertices' ``s`` never decreases (a path :meth:`lateral_at` can follow)."""
+        return all(b[0] >= a[0] for a, b in zip(self.points, self.points[1:]))
+
+    def lateral_at(self, s: float) -> float:
+        """The path's lateral position at ``s`` along the road, for a vehicle whose longitudinal
+        motion is driven from outside (linear between vertices; the end vertices' beyond them)."""
+        pts = self.points
+        k = 0
+        while k < len(pts) - 2 and s > pts[k + 1][0] + 1e-9:
+            k += 1
+        a, b = pts[k], pts[k + 1]
+        if b[0] <= a[0] or s >= b[0] - 1e-9:
+            return b[1] if s >= a[0] else a[1]
+        return a[1] + max(s - a[0], 0.0) / (b[0] - a[0]) * (b[1] - a[1])
 
     def finished(self, t: float) -> bool:
         if self.timed:
@@ -518,18 +622,18 @@ class World:
                 continue
             if isinstance(p, M.OutOfScope):
                 continue
-            if is_ego and self.ego_active and element is not None and action.domain in (
-                    "longitudinal", "lane", "position", "trajectory"):  # Init's actions: the initial state
+            # decided: a vehicle driven longitudinally from outside (the ego under test, a human-like driver)
+            # keeps its scripted lateral motion -- lane changes, lane offsets and untimed paths, as its lateral
+            # position over its position along the road -- as the environments script the ego's lane change
+            timed = isinstance(p, M.FollowTrajectoryAction) and p.timing is not None
+            lengthwise = action.domain in ("longitudinal", "position") or timed  # Init's actions: the initial state
+            if is_ego and self.ego_active and element is not None and lengthwise:
                 self.ignored.append(f"{action.where}: {type(p).__name__} {action.name!r} on the ego at "
                                     f"t = {self.t:.2f} s (the controller under test drives it)")
                 continue
-            if name in self.driven and action.domain in ("longitudinal", "trajectory"):
+            if name in self.driven and (action.domain == "longitudinal" or timed):
                 self.ignored.append(f"{action.where}: {type(p).__name__} {action.name!r} on {name!r} at "
                                     f"t = {self.t:.2f} s (a human-like driver drives it)")
-                continue
-            if is_ego and action.domain == "lane":
-                self.ignored.append(f"{action.where}: {type(p).__name__} {action.name!r} on the ego "
-                                    f"(its lateral control is out of scope)")
                 continue
             if isinstance(p, M.TeleportAction):
                 s, t, h = self.place(p.position)
@@ -545,11 +649,13 @@ class World:
                                         f"position (Init gives none: a TeleportAction or a trajectory places it)",
                                         action.where.file, action.where.line)
             if isinstance(p, M.FollowTrajectoryAction):
-                pts = []
+                pts, hs = [], []
                 for _tv, pos in p.vertices:
-                    s, y, _h = self.place(pos)
+                    s, y, h = self.place(pos)
                     pts.append((s, y))
-                run = TrajectoryRun(action, element, body, self.t, pts, self)
+                    hs.append(h)
+                run = TrajectoryRun(action, element, body, self.t, pts, self,
+                                    None if any(h is None for h in hs) else hs)
                 self._replace(body, "path", run)
                 self._replace(body, "lat", None)
                 if run.timed:
@@ -570,6 +676,16 @@ class World:
                     body.v = run._target(body)
                     if run.finished(self.t):
                         run.done = True
+                runs.append(run)
+            elif isinstance(p, M.SpeedProfileAction):
+                run = ProfileRun(action, element, body, self.t, self)
+                self._replace(body, "long", run)
+                k = 0
+                while k < len(run.T) - 1 and run.T[k + 1] <= self.t + 1e-9:  # changes at once: the speed now
+                    k += 1
+                body.v = run.V[k]
+                if run.finished(self.t):
+                    run.done = True
                 runs.append(run)
             elif isinstance(p, M.LongitudinalDistanceAction):
                 self._ref(p.entity, action.where)
@@ -872,30 +988,45 @@ class World:
                 s1, v1, a = ego_state if name == self.ego else driven[name]
                 ds = s1 - b.s
                 b.s, b.v, b.a = s1, v1, a
+                path = b.path
+                if path is not None and path.timed:  # started before the controller took over: it ends
+                    path.done, path.stopped, b.path = True, True, None
+                elif path is not None and not path.advances():
+                    path.done, path.stopped, b.path = True, True, None
+                    self.ignored.append(f"{path.action.where}: FollowTrajectoryAction {path.action.name!r} on "
+                                        f"{name!r} at t = {self.t:.2f} s (its controller drives it along the road, "
+                                        f"and the path turns back along it)")
+                elif path is not None:
+                    b.t = path.lateral_at(b.s)
+                    if b.s >= path.points[-1][0] - 1e-9:
+                        path.done, b.path = True, None
             else:
                 run, path = b.long, b.path
-                if isinstance(run, SpeedRun) and not run.done or (isinstance(run, SpeedRun) and run.ref is not None):
+                if isinstance(run, (SpeedRun, ProfileRun)) and not run.done or (
+                        isinstance(run, SpeedRun) and run.ref is not None):
                     v1, ds = run.speed_and_distance(self.t, dt, b)
                 else:
                     v1, ds = b.v, b.v * dt
-                if path is not None and path.timed:  # the position from the trajectory
-                    s1, y1, v1, h = path.at(t1)
-                    ds = math.hypot(s1 - b.s, y1 - b.t)
-                    b.s, b.t = s1, y1
+                if path is not None:
+                    if path.timed:  # the position from the trajectory
+                        s1, y1, v1, course, h = path.at(t1)
+                        ds = math.hypot(s1 - b.s, y1 - b.t)
+                        b.s, b.t = s1, y1
+                    else:  # along the trajectory at the entity's own speed
+                        path.along += ds
+                        b.s, b.t, course, h = path._at_length(path.along)
                     b.h = b.h if h is None else h
-                elif path is not None:  # along the trajectory at the entity's own speed
-                    path.along += ds
-                    b.s, b.t, h = path._at_length(path.along)
-                    b.h = b.h if h is None else h
+                    if course is not None:
+                        b.course = None if path.headings is None else course
                 else:
                     b.s += ds * math.cos(b.h)
                     b.t += ds * math.sin(b.h)
                 b.a = (v1 - v0) / dt
                 b.v = v1
-                if isinstance(run, SpeedRun) and not run.done and run.finished(t1):
+                if isinstance(run, (SpeedRun, ProfileRun)) and not run.done and run.finished(t1):
                     run.done = True
                 if path is not None and path.finished(t1):
-                    path.done, b.path = True, None
+                    path.done, b.path, b.course = True, None, None
             if b.lat is not None:
                 b.t = b.lat.lateral(t1)
                 if b.lat.finished(t1):
@@ -940,32 +1071,31 @@ def _activates(sc: M.OpenScenario) -> bool:
 
 
 def lead_of(world: World, sensor_range: float, who: str | None = None):
-    """The ego's target now: the nearest entity whose contour overlaps the ego's lane corridor
-    (one lane width centred on the ego, as :mod:`acc_gym.simulation.single_lane` selects
-    targets) and is ahead of the ego's front -- or reaches alongside it and touches the ego's
-    own contour (then its gap is negative: a collision) -- within ``sensor_range``:
+    """The ego's target now, by the environments' rule (:mod:`acc_gym.simulation.single_lane`):
+    the nearest entity whose front is ahead of the ego's front and whose contour overlaps the
+    ego's lane corridor (one lane width centred on the ego), within ``sensor_range``:
     ``(name, gap, v, a)`` or None; ``gap`` from the ego's front bumper to the target's rear
-    [m] and ``v``, ``a`` its speed and acceleration along the road. ``who``: another entity's
-    target by the same rule (default the ego's)."""
+    [m] (negative for one whose rear is not yet ahead of the ego's front: a collision, as the
+    environments count it) and ``v``, ``a`` its speed and acceleration along the road.
+    ``who``: another entity's target by the same rule (default the ego's)."""
     who = world.ego if who is None else who
     ego = world.bodies[who]
     lane = world.lane_of(ego)
     width = lane.width if lane is not None else 3.5
-    er, ef, eR, eL = ego.box()
+    _er, ef, _eR, _eL = ego.box()
     best = None
     for name, b in world.bodies.items():
         if name == who:
             continue
         r, f, R, L = b.box()
-        if not (R < ego.t + 0.5 * width and L > ego.t - 0.5 * width) or f <= er:
+        if not (R < ego.t + 0.5 * width and L > ego.t - 0.5 * width) or f <= ef:
             continue
-        if r < ef and not (R < eL and L > eR):
-            continue  # alongside in the corridor without touching the ego: not (yet) a target
         gap = r - ef
         if gap > sensor_range:
             continue
         if best is None or gap < best[1]:
-            best = (name, gap, b.v * math.cos(b.h), b.a * math.cos(b.h))
+            c = math.cos(b.h if b.course is None else b.course)  # the speed along the road
+            best = (name, gap, b.v * c, b.a * c)
     return best
 
 

@@ -269,6 +269,81 @@ def test_continuous_factor_by_a_step_follows_the_reference_at_once(tmp_path):
     assert v[-1] == pytest.approx(25.5)
 
 
+# ---------------------------------------------------------------- SpeedProfileAction
+def profile(*entries, relative=None, follow=False, max_acc=None, max_dec=None):
+    """A SpeedProfileAction of ``entries`` ``(time or None, speed)``."""
+    dc = "" if max_acc is None else (f'<DynamicConstraints maxAcceleration="{max_acc}" '
+                                     f'maxDeceleration="{max_dec}"/>')
+    es = "".join(f'<SpeedProfileEntry speed="{v}"' + ("" if t is None else f' time="{t}"') + "/>" for t, v in entries)
+    ref = "" if relative is None else f' entityRef="{relative}"'
+    mode = "follow" if follow else "position"
+    return (f'<PrivateAction><LongitudinalAction><SpeedProfileAction{ref} followingMode="{mode}">\n{dc}{es}'
+            f'</SpeedProfileAction></LongitudinalAction></PrivateAction>')
+
+
+def piecewise_linear(T, V, t):
+    """Hand computation: speed (the value reached at t) and distance since T[0] of the speed
+    linear between the vertices (T, V), held after the last."""
+    v, d = V[0], 0.0
+    for Ta, Tb, va, vb in zip(T, T[1:], V, V[1:]):
+        if t <= Ta:
+            break
+        if Tb == Ta:
+            v = vb
+            continue
+        te = min(t, Tb)
+        ve = va + (vb - va) * (te - Ta) / (Tb - Ta)
+        d += 0.5 * (va + ve) * (te - Ta)
+        v = ve
+    if t > T[-1]:
+        d += V[-1] * (t - T[-1])
+    return v, d
+
+
+@pytest.mark.parametrize("entries, T, V, kw", [
+    # 10 -> 16 over 1.3 s (ends off the 0.2 s grid), a change at once to 12, held 2 s, to 0 in 1 s
+    (((1.3, 16), (0.0, 12), (2.0, 12), (1.0, 0)), (1.0, 2.3, 2.3, 4.3, 5.3), (10, 16, 12, 12, 0), {}),
+    # speeds relative to Ref's (10 m/s) when the action starts
+    (((1.0, -4), (2.0, 5)), (1.0, 2.0, 4.0), (10, 6, 15), dict(relative="Ref")),
+    # entries without times at the constraints' limits: 10 -> 16 at 2 m/s^2 (3 s), -> 8 at 4 m/s^2 (2 s)
+    (((None, 16), (None, 8)), (1.0, 4.0, 6.0), (10, 16, 8), dict(max_acc=2.0, max_dec=4.0)),
+    # an entry asking 12 m/s^2 where 2 are allowed takes the 3 s the limit needs
+    (((0.5, 16),), (1.0, 4.0), (10, 16), dict(max_acc=2.0, max_dec=4.0)),
+])
+def test_speed_profile_is_linear_between_entries_and_integrated_exactly(tmp_path, entries, T, V, kw):
+    result, tr = run(tmp_path, [on_target(("p", profile(*entries, **kw)))])
+    v, s = column(tr, "Target"), column(tr, "Target", "s")
+    for k, t in enumerate(tr.t):
+        if t < 1.0:
+            assert v[k] == 10.0 and s[k] == pytest.approx(20.0 + 10.0 * t, abs=1e-9)
+            continue
+        vh, dh = piecewise_linear(T, V, t)
+        assert v[k] == pytest.approx(vh, abs=1e-9), t
+        assert s[k] == pytest.approx(30.0 + dh, abs=1e-9), t
+    assert any("beyond the dynamic constraints" in n for n in result["notes"]) == (entries == ((0.5, 16),))
+
+
+def test_speed_profile_starting_with_a_time_of_zero_sets_the_speed_at_once(tmp_path):
+    _, tr = run(tmp_path, [on_target(("p", profile((0.0, 4), (1.0, 4))))])
+    v, s = column(tr, "Target"), column(tr, "Target", "s")
+    assert v[K0 - 1] == 10.0 and v[K0] == 4.0 and np.all(v[K0:] == 4.0)
+    np.testing.assert_allclose(s[K0:], 30.0 + 4.0 * tau_of(tr)[K0:], atol=1e-9)
+
+
+@pytest.mark.parametrize("entries, kw, msg", [
+    (((1.0, 5),), dict(follow=True), "followingMode 'follow'"),
+    (((None, 5),), {}, "without a time needs DynamicConstraints"),
+    (((-1.0, 5),), {}, "time must be >= 0"),
+])
+def test_speed_profiles_the_reader_refuses(tmp_path, entries, kw, msg):
+    path = write(tmp_path, init_of(), [on_target(("p", profile(*entries, **kw)))])
+    with pytest.raises(OpenScenarioError, match=msg) as e:
+        read(path)
+    text = path.read_text()
+    tag = "SpeedProfileAction" if "follow" in msg else "SpeedProfileEntry"
+    assert e.value.line == text[:text.index(f"<{tag}")].count("\n") + 1
+
+
 # ---------------------------------------------------------------- LongitudinalDistanceAction
 # Ref ahead in lane -2 at s = 100, 15 m/s; Target in lane -2 at s = 20, 10 m/s; placed at step 5
 DIST_START = dict(START, Ref=(-2, 100.0, 15.0))

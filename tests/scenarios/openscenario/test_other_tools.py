@@ -24,8 +24,10 @@ def test_acc_stops_short_of_what_cruise_control_runs_into(name):
     acc, tr = _run(name, "acc")
     assert not acc["collided"] and acc["min_gap"] > 0, acc
     assert np.all(np.isfinite(tr.s)) and np.all(tr.v >= 0)
-    cc, _ = _run(name, "constant")
-    assert cc["collided"] and cc["min_gap"] <= 0, cc
+    cc, ctr = _run(name, "constant")
+    # cruise control hits its target: a gap reaching 0, or the contours touching (or passing through each other)
+    # inside a step, after which the lead is no longer ahead of the ego's front
+    assert cc["collided"] and (cc["min_gap"] <= 0 or cc["collision_with"] in tr.names), cc
 
 
 def test_a_lead_that_brakes_hard_to_a_stop():
