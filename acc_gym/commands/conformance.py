@@ -3,6 +3,8 @@ JSON and written as JSON, Markdown and HTML (:mod:`acc_gym.standards.conformance
 
 from __future__ import annotations
 
+import sys
+
 from acc_gym.commands._args import add_onboard_args, onboard_kwargs
 from acc_gym.standards import battery as batteries
 from acc_gym.standards.conformance import (R157_REFERENCES, STANDARDS, conformance, markdown, to_json, work,
@@ -45,6 +47,9 @@ def run(args, parser) -> int:
     except (ValueError, TypeError) as exc:
         parser.error(str(exc))
     files = write_reports(result, args.out) if args.out else None
+    if files is not None and result.get("_failures") and "failures" not in files:
+        print(f"acc-gym conformance: {len(result['_failures'])} failing drive(s) not written as OpenSCENARIO "
+              f"(pip install 'acc-gym[osc]')", file=sys.stderr)
     if args.json:
         print(to_json({**result, **({"files": files} if files else {})}))
     else:

@@ -85,6 +85,9 @@ def add_parser(sub) -> None:
                    help="skip the robustness column (each controller drives the ncap-v2 test episodes in a car with "
                         "the typical radar and actuators: share qualified and collisions; a few seconds each; it "
                         "does not change points or rank)")
+    p.add_argument("--alks", action="store_true",
+                   help="add the UN R157 column: each controller drives the shipped ALKS OpenSCENARIO bundle as the "
+                        "suite alks-v1 (43 episodes; about 25 s each; it does not change points or rank)")
     p.add_argument("--json", action="store_true", help="print the ranking as one JSON object")
     add_onboard_args(p, v2v=False)  # the suites' episodes in that car (the ranking is then that car's)
 
@@ -122,7 +125,8 @@ def run(args, parser) -> int:
                                            **({} if args.no_iso15622 else {"iso15622": by_name[n].get("iso15622")}),
                                            **({} if args.no_waves else {"waves": by_name[n].get("waves")}),
                                            **({} if args.no_robustness else
-                                              {"robustness": by_name[n].get("robustness")})}
+                                              {"robustness": by_name[n].get("robustness")}),
+                                           **({"alks": by_name[n].get("alks")} if args.alks else {})}
                                           for n in results["ranking"]], "out": str(args.out)}), flush=True)
         else:
             bar.__exit__(None, None, None)  # the bar's last line stays, the table comes below it
@@ -146,7 +150,8 @@ def run(args, parser) -> int:
                                       secret=secret, risk={"family": args.risk_family, "budget": args.risk_budget}
                                       if args.risk else None, string_stability=not args.no_string_stability,
                                       iso15622=not args.no_iso15622, waves=not args.no_waves,
-                                      robustness=not args.no_robustness, car=onboard_kwargs(args, parser) or None,
+                                      robustness=not args.no_robustness, alks=args.alks,
+                                      car=onboard_kwargs(args, parser) or None,
                                       allow_root=args.allow_root,
                                       limits=_limits(args))
     except (OutputError, RuntimeError) as exc:  # a failed write, or a sandbox this machine cannot give

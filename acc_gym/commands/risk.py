@@ -47,7 +47,8 @@ def add_parser(sub) -> None:
                    help="hold a scenario parameter fixed (repeatable): the estimate is conditional on it")
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: the CPU count)")
     p.add_argument("--scheduler", default=None, help="a Dask scheduler address, or 'local' for a LocalCluster")
-    p.add_argument("--out", default=None, help="a directory for the finished chunks (a rerun resumes from it)")
+    p.add_argument("--out", default=None, help="a directory for the finished chunks (a rerun resumes from it) and, "
+                                               "with the osc extra, the first collisions as OpenSCENARIO (failures/)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -107,4 +108,7 @@ def format_result(r: RiskResult) -> str:
                      f"driver, cc-driver, avoids the same scenario), {m} not")
     if r.min_ttc is not None:
         lines.append(f"  smallest time-to-collision seen: {r.min_ttc:.2f} s")
+    if r.failures:
+        lines.append(f"  the first {len(r.failures)} collision(s) as OpenSCENARIO, in --out: "
+                     + ", ".join(f["xosc"] for f in r.failures))
     return "\n".join(lines)

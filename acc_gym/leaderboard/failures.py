@@ -12,16 +12,11 @@ results say why in ``failing_episode``.
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
+from acc_gym.scenarios.openscenario.writer import file_stem
+
 FOLDER = "failures"
-
-
-def file_stem(name: str) -> str:
-    """A controller's name as a file name: letters, digits, ``.``, ``_`` and ``-`` only."""
-    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "controller"
-    return stem[:80]
 
 
 def write_failing_episodes(trace_map: dict, episodes: dict, out_dir: Path) -> dict:

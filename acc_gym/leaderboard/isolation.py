@@ -65,11 +65,12 @@ class Columns:
     iso15622: bool = False  # ISO 15622 on the iso15622-v1 battery (acc_gym.leaderboard.iso15622)
     waves: dict | None = None  # the all-human rings (acc_gym.leaderboard.waves.human_baseline); None: no column
     robustness: bool = False  # the typical car's radar and actuators (acc_gym.leaderboard.robustness)
+    alks: bool = False  # UN R157's ALKS bundle as alks-v1 (acc_gym.leaderboard.alks)
 
     def __iter__(self):
         """The columns to measure, in order: ``(name, measure, failed_cell)``; ``measure(column)``
         takes a :class:`_Column` and returns the cell, raising :class:`ControllerFailed`."""
-        from acc_gym.leaderboard import iso15622, robustness, waves
+        from acc_gym.leaderboard import alks, iso15622, robustness, waves
 
         if self.platoon:
             yield "string_stability", _platoon, lambda reason: {"failed": reason}
@@ -79,6 +80,8 @@ class Columns:
             yield "waves", lambda column: _waves(column, self.waves), waves.failed_cell
         if self.robustness:
             yield "robustness", _robustness, robustness.failed_cell
+        if self.alks:
+            yield "alks", _alks, alks.failed_cell
 
 
 def step_budget_message(budget: float) -> str:
@@ -521,6 +524,15 @@ def _robustness(column: _Column) -> dict:
     return remote_cell(column.exchange, column.declared, first_slot=column.first_slot)
 
 
+def _alks(column: _Column) -> dict:
+    """The UN R157 bundle's cell (:mod:`acc_gym.leaderboard.alks`): alks-v1's OpenSCENARIO runs here,
+    the ego's actions from the controller's fresh copies in the sandbox, one per episode."""
+    from acc_gym.leaderboard.alks import remote_cell
+
+    column.where = "the ALKS column"
+    return remote_cell(column.exchange, column.declared, first_slot=column.first_slot)
+
+
 @dataclass
 class Outcome:
     """What the runner learned about one controller."""
@@ -535,6 +547,7 @@ class Outcome:
     iso15622: dict | None = None
     waves: dict | None = None
     robustness: dict | None = None
+    alks: dict | None = None
     wall_time_s: float = 0.0
     log: str | None = None
 
@@ -612,6 +625,8 @@ class _Running:
                     self.outcome.waves = payload[0]
                 elif kind == "robustness":
                     self.outcome.robustness = payload[0]
+                elif kind == "alks":
+                    self.outcome.alks = payload[0]
                 elif kind == "done":
                     problem = self.ledger.problem()
                     if problem is not None:

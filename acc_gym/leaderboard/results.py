@@ -182,6 +182,9 @@ WAVE_COLUMNS = ("waves_ratio", "waves_speed_ratio", "waves_collisions", "waves_f
 # ones, and the reason when the controller failed in the column
 ROBUSTNESS_COLUMNS = ("robustness_qualified", "robustness_score", "robustness_collisions", "robustness_preventable",
                       "robustness_failed_to_run")
+# the UN R157 bundle's column (--alks): the share qualified, mean score, collisions, preventable ones, and the reason
+# when the controller failed in the column
+ALKS_COLUMNS = ("alks_qualified", "alks_score", "alks_collisions", "alks_preventable", "alks_failed_to_run")
 #: table columns with an interval, and the summary figure they show
 INTERVALS = {"points": "mean_points", "score": "mean_score", "qualified": "share_qualified",
              "collisions_per_hour": "collisions_per_hour", "comfortable": "share_comfortable",
@@ -242,6 +245,11 @@ def table_rows(results: dict) -> list[dict]:
             row["robustness"] = c.get("robustness")
             for col in ROBUSTNESS_COLUMNS:
                 row[col] = cell.get(col[len("robustness_"):])
+        if _has_alks(results):
+            cell = c.get("alks") or {}
+            row["alks"] = c.get("alks")
+            for col in ALKS_COLUMNS:
+                row[col] = cell.get(col[len("alks_"):])
         vs = c.get("vs_above")
         row["vs_above"] = uncertainty.verdict(vs)
         row["vs_above_diff"] = vs["diff"] if vs else None
@@ -285,11 +293,15 @@ def _has_robustness(results: dict) -> bool:
     return bool((results["manifest"].get("settings") or {}).get("robustness"))
 
 
+def _has_alks(results: dict) -> bool:
+    return bool((results["manifest"].get("settings") or {}).get("alks"))
+
+
 def column_notes(results: dict) -> list[str]:
     """The lines under the ranking table: the sandbox's warning if there is one (strangers' code ran as
     root, ``--allow-root``), then the optional columns that ran (string stability, ISO 15622, waves,
     robustness)."""
-    from acc_gym.leaderboard import iso15622, robustness, waves
+    from acc_gym.leaderboard import alks, iso15622, robustness, waves
 
     warning = (results["manifest"].get("sandbox") or {}).get("warning")  # strangers' code ran as root
     from acc_gym.onboard import describe
@@ -301,7 +313,8 @@ def column_notes(results: dict) -> list[str]:
         ([string_stability_note(results)] if _has_string_stability(results) else []) + \
         ([iso15622.note(results)] if _has_iso15622(results) else []) + \
         ([waves.note(results)] if _has_waves(results) else []) + \
-        ([robustness.note(results)] if _has_robustness(results) else [])
+        ([robustness.note(results)] if _has_robustness(results) else []) + \
+        ([alks.note(results)] if _has_alks(results) else [])
 
 
 def _fmt(key: str, value) -> str:
@@ -323,7 +336,7 @@ def _fmt(key: str, value) -> str:
         from acc_gym.leaderboard.waves import format_cell as format_waves
 
         return format_waves(value)
-    if key == "robustness":
+    if key in ("robustness", "alks"):
         from acc_gym.leaderboard.robustness import format_cell as format_robustness
 
         return format_robustness(value)
@@ -374,6 +387,10 @@ def display_columns(results: dict) -> list[tuple[str, str]]:
         from acc_gym.leaderboard.robustness import HEADER as ROBUSTNESS
 
         cols.append(("robustness", ROBUSTNESS))
+    if _has_alks(results):
+        from acc_gym.leaderboard.alks import HEADER as ALKS
+
+        cols.append(("alks", ALKS))
     return cols + [("episodes", "episodes"), ("wall_time_s", "time [s]")]
 
 
@@ -414,7 +431,7 @@ NAME_WIDTH = 28  # [characters] a longer controller name is shortened in the pri
 #: the printed table's columns: always these, then the optional ones while the table fits TEXT_WIDTH
 TEXT_COLUMNS = ("rank", "controller", "points", "vs_above", "score", "collisions", "preventable_collisions",
                 "min_ttc_s")
-TEXT_OPTIONAL = ("qualified", "suites", "string_stability", "iso15622", "waves", "robustness", "risk", "wall_time_s", "comfortable",
+TEXT_OPTIONAL = ("qualified", "suites", "string_stability", "iso15622", "waves", "robustness", "alks", "risk", "wall_time_s", "comfortable",
                  "safe_spacing", "max_jerk_mps3", "collisions_per_hour", "episodes")
 
 

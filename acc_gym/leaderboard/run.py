@@ -256,6 +256,12 @@ def _car(car: dict | None) -> tuple[tuple, dict | None]:
     return tuple(sorted(cfg.items())), {k: asdict(v) for k, v in cfg.items()}
 
 
+def _alks_settings() -> dict:
+    from acc_gym.leaderboard.alks import settings
+
+    return settings()
+
+
 def _robustness_settings() -> dict:
     from acc_gym.leaderboard.robustness import settings
 
@@ -272,7 +278,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                     step_budget: float = DEFAULT_STEP_BUDGET, budget: float = DEFAULT_BUDGET,
                     episodes: int | None = None, report: bool = True, progress=None, sandbox: str = "process",
                     show=None, secret=None, risk: dict | None = None, string_stability: bool = True,
-                    iso15622: bool = True, waves: bool = True, robustness: bool = True, car: dict | None = None,
+                    iso15622: bool = True, waves: bool = True, robustness: bool = True, alks: bool = False,
+                    car: dict | None = None,
                     allow_root: bool = False, limits=None, phase=None,
                     warm: bool = True, episode_progress=None) -> dict:
     """Score ``controllers`` on ``suites`` (names; default all) and rank them; returns the results dict.
@@ -313,7 +320,10 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
     column. ``robustness``: then each controller drives the ncap-v2 test episodes in a car with the
     typical radar and actuators (:mod:`acc_gym.leaderboard.robustness`; a few seconds each): the
     share qualified and the collisions (preventable or not) go into each controller's
-    ``robustness`` and a column. No column changes points or ranks.
+    ``robustness`` and a column. ``alks``: then each controller drives UN R157's ALKS bundle as
+    the suite alks-v1 (43 OpenSCENARIO episodes, :mod:`acc_gym.leaderboard.alks`; about 25 s each,
+    so off by default): the cell goes into each controller's ``alks`` and a column. No column
+    changes points or ranks.
     ``car``: the suites' episodes in a car with these ``gym.make`` settings (``sensors``,
     ``actuators``: presets or configs, :mod:`acc_gym.onboard`; None: the ideal car), recorded in the
     manifest (``settings.car``); the ranking is then the ranking in that car.
@@ -419,7 +429,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                                 episode_progress=None if episode_progress is None else ticked,
                                 log_dir=logs, uids=uids, sandbox=sandbox,
                                 columns=Columns(platoon=bool(string_stability), iso15622=bool(iso15622),
-                                                waves=baseline, robustness=bool(robustness)))
+                                                waves=baseline, robustness=bool(robustness),
+                                                alks=bool(alks)))
     except BaseException:
         if staging is not None:
             shutil.rmtree(staging, ignore_errors=True)
@@ -461,7 +472,8 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                         **({"string_stability": o.string_stability} if string_stability else {}),
                         **({"iso15622": o.iso15622} if iso15622 else {}),
                         **({"waves": o.waves} if waves else {}),
-                        **({"robustness": o.robustness} if robustness else {})})
+                        **({"robustness": o.robustness} if robustness else {}),
+                        **({"alks": o.alks} if alks else {})})
     ranking = rank(entries)
     manifest = {
         "format": "acc_gym.leaderboard/1", "created": created, "versions": versions(),
@@ -474,6 +486,7 @@ def run_leaderboard(suites=None, split: str = "test", controllers=None, *, out=N
                      "iso15622": _iso15622_settings() if iso15622 else None,
                      "waves": _waves_settings(baseline) if waves else None,
                      "robustness": _robustness_settings() if robustness else None,
+                     "alks": _alks_settings() if alks else None,
                      "car": car_settings},
         "sandbox": sandbox_info, "ranking_rule": RANKING_RULE,
         "results_key_id": None if key is None else signature({}, key)["key_id"],

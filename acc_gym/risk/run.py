@@ -150,6 +150,9 @@ class RiskResult:
     # UN R157 (collision events only, else None): the estimation rounds' collisions that cc-driver avoids / has too
     preventable_collisions: int | None = None
     non_preventable_collisions: int | None = None
+    # the estimation episodes' first collisions written as OpenSCENARIO (with out and the osc extra): their
+    # files relative to out, episode numbers and whether the re-run collided too
+    failures: list = field(default_factory=list)
 
     def per_hour(self, est: Estimate | None = None) -> dict | None:
         """The estimate as events per hour of driving (times the family's occurrence rate)."""
@@ -167,7 +170,7 @@ class RiskResult:
                 "stop": self.stop, "episodes": self.episodes, "rounds": self.rounds, "proposal": self.proposal,
                 "occurrence_rate": self.occurrence_rate, "wall_time_s": self.wall_time_s, "min_ttc": self.min_ttc,
                 "preventable_collisions": self.preventable_collisions,
-                "non_preventable_collisions": self.non_preventable_collisions}
+                "non_preventable_collisions": self.non_preventable_collisions, "failures": self.failures}
 
 
 def _check(name: str, value, *, positive=True, integer=False, upper=None):
@@ -360,10 +363,39 @@ def estimate_risk(controller, family: str = "cut-in", *, event: str = "collision
     other = estimate_records(pooled, performance(pooled, second), second, spent, e)
     rate = stype.occurrence_rate
     split = preventability_counts(pooled) if judged else (None, None)
+    failures = [] if out is None or is_object else write_failures(controller, stype, fixed, drivers, env_id,
+                                                                   pooled, Path(out))
     return RiskResult(label, family, sid, method, event, est, other, stop, spent, rounds,
                       proposal.to_dict() if adaptive else None,
                       None if rate is None else float(rate.mean), time.monotonic() - started,
-                      None if not math.isfinite(min_ttc) else min_ttc, *split)
+                      None if not math.isfinite(min_ttc) else min_ttc, *split, failures)
+
+
+MAX_FAILURES_WRITTEN = 5  # the estimation episodes' collisions write_failures writes, at most
+
+
+def write_failures(controller: str, stype, fixed: dict, drivers: str, env_id: str, records: list, out: Path) -> list:
+    """The first :data:`MAX_FAILURES_WRITTEN` collisions of ``records`` (the estimation episodes)
+    as OpenSCENARIO in ``out/failures/`` (``<family>-episode<N>.xosc`` and ``.xodr``): each
+    scenario is built again from its draw and driven again by ``controller`` in ``env_id``
+    (:func:`acc_gym.scenarios.openscenario.writer.export`, the trajectories driven, the
+    controller's too). ``[{"xosc", "xodr", "episode", "collided"}]`` (paths relative to
+    ``out``; ``collided``: the re-run collided as the recorded one did). Needs the ``osc``
+    extra; without it nothing is written."""
+    try:
+        import scenariogeneration  # noqa: F401
+    except ImportError:
+        return []
+    from acc_gym.scenarios.openscenario.writer import export, file_stem
+
+    written = []
+    for r in [r for r in records if r["collision"]][:MAX_FAILURES_WRITTEN]:
+        sc = stype.build({**fixed, **r["params"]}, r["seed"], drivers)
+        ex, info, _ = export(sc, controller, out / "failures", name=f"{file_stem(sc.id)}-episode{r['episode']}",
+                             env_id=env_id)
+        written.append({"xosc": f"failures/{ex.xosc.name}", "xodr": f"failures/{ex.xodr.name}",
+                        "episode": int(r["episode"]), "collided": bool(info["report"]["metrics"]["collision"])})
+    return written
 
 
 def search(proposal: Proposal, simulate, perf, *, event: str = "collision", budget: int, round_size: int,

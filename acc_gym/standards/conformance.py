@@ -78,28 +78,41 @@ def conformance(controller, standards=("iso15622",), seeds=batteries.SEEDS, name
 
         out["car"] = {"sensors": asdict(sensor_config(car.get("sensors"))),
                       "actuators": asdict(actuator_config(car.get("actuators")))}
+    failures = []  # {"label", "scenario", "trace"} of each failing drive (out["_failures"])
     if "iso15622" in standards:
         tell("ISO 15622", 0)
-        drives, errors, _ = batteries.run_battery(controller, batteries.ISO15622_V1, seeds,
-                                                  progress=lambda _name: tell("ISO 15622", 1), car=car)
+        drives, errors, traces = batteries.run_battery(controller, batteries.ISO15622_V1, seeds,
+                                                       progress=lambda _name: tell("ISO 15622", 1), car=car)
         report = iso15622.check_drives(drives)
         report.errors = errors
         out["standards"]["iso15622"] = {**report.to_dict(), "battery": batteries.ISO15622_V1,
                                         "seeds": list(seeds)}
         out["_drives"] = drives
+        # the failing drives (a collision, the worst case of a failed requirement), for write_reports' failures/
+        scenarios = {label: sc for label, _seed, sc in batteries.battery_cases(batteries.ISO15622_V1, seeds)}
+        failed = list(report.collisions) + [label for r in report.requirements if r.passed is False and r.where
+                                            for label in traces if r.where.startswith(label)]
+        failures += [{"label": f"iso15622-{label}", "scenario": scenarios[label], "trace": traces[label]}
+                     for label in dict.fromkeys(failed) if label in traces and label in scenarios]
     if "r157" in standards:
         from acc_gym.standards.r157 import r157_cases
 
         if r157_reference not in R157_REFERENCES:
             raise ValueError(f"unknown R157 reference {r157_reference!r}; choose from {list(R157_REFERENCES)}")
         tell("UN R157", 0)
-        out["standards"]["r157"] = r157_cases(controller, reference=r157_reference, car=car)
+        out["standards"]["r157"] = r157_cases(controller, reference=r157_reference, car=car, keep_failures=True)
+        failures += out["standards"]["r157"].pop("_failures")
         tell("UN R157", len(out["standards"]["r157"]["cases"]))
     if "ncap" in standards:
         from acc_gym.standards.ncap import ncap_report
 
         tell("Euro NCAP", 0)
         out["standards"]["ncap"] = ncap_report(controller, progress=lambda _sid: tell("Euro NCAP", 1), car=car)
+    if failures:
+        from acc_gym.evaluation.runner import declared_time_gap, load_controller
+
+        tg = declared_time_gap(load_controller(controller))
+        out["_failures"] = [{**f, "time_gap": tg} for f in failures]
     return out
 
 
@@ -284,9 +297,34 @@ def html_report(result: dict, figures: dict | None = None) -> str:
     return "\n".join(parts)
 
 
+FAILURES = "failures"  # write_reports' folder of failing drives as OpenSCENARIO
+
+
+def write_failures(result: dict, out) -> list:
+    """Each failing drive of ``result`` (its ``_failures``: an ISO 15622 drive that collided or
+    is the worst case of a failed requirement, a UN R157 case the controller collides in) as
+    OpenSCENARIO in ``out/failures/`` (``iso15622-LABEL.xosc``, ``r157-FAMILY-K.xosc`` and their
+    ``.xodr``: :func:`acc_gym.scenarios.openscenario.writer.write_episode`, the trajectories driven,
+    the controller's too). Needs the ``osc`` extra; without it nothing is written. Returns the
+    ``.xosc`` paths."""
+    fails = result.get("_failures") or []
+    if not fails:
+        return []
+    from acc_gym.scenarios.openscenario.writer import file_stem, write_episode
+
+    try:
+        import scenariogeneration  # noqa: F401
+    except ImportError:
+        return []
+    folder = Path(out) / FAILURES
+    return [write_episode(f["scenario"], f["trace"], folder, name=file_stem(f["label"]),
+                          controller=str(result["controller"]), time_gap=f.get("time_gap")).xosc for f in fails]
+
+
 def write_reports(result: dict, out) -> dict:
     """``conformance.json``, ``conformance.md``, ``conformance.html`` (the plots inside),
-    ``envelope.png`` and ``preventability.png`` in ``out`` (each written atomically); returns the paths."""
+    ``envelope.png``, ``preventability.png`` and the failing drives as OpenSCENARIO
+    (:func:`write_failures`, ``failures/``) in ``out`` (each written atomically); returns the paths."""
     from acc_gym._io import atomic_write
     from acc_gym.plotting import save_figure
 
@@ -302,6 +340,9 @@ def write_reports(result: dict, out) -> dict:
 
         figures["preventability"] = plot_map(result["standards"]["r157"])
         paths["map"] = save_figure(figures["preventability"], out / "preventability.png")
+    written = write_failures(result, out)
+    if written:
+        paths["failures"] = out / FAILURES
     atomic_write(paths["json"], to_json(result) + "\n")
     atomic_write(paths["markdown"], markdown(result))
     atomic_write(paths["html"], html_report(result, figures))

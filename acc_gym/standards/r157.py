@@ -221,18 +221,21 @@ def preventability(controller, scenario, reference: str = REFERENCE) -> dict:
     return {"controller_collides": mine, "cc_driver_collides": ref, "preventable": (not ref) if mine else None}
 
 
-def r157_cases(controller, reference: str = REFERENCE, families=None, car: dict | None = None) -> dict:
+def r157_cases(controller, reference: str = REFERENCE, families=None, car: dict | None = None,
+               keep_failures: bool = False) -> dict:
     """Every case of :func:`grid` (or those of ``families``, names of its families) for
     ``controller`` and the C&C ``reference``; JSON-safe:
     ``{"cases": [{"family", "params", "controller_collides", "cc_driver_collides", "preventable"}],
     "preventable_collisions", "non_preventable_collisions", "errors"}`` (``preventable`` is None
     where the controller does not collide). A case the controller fails is named in ``errors``.
     ``car``: the controller's car, as ``gym.make`` settings (``sensors``, ``actuators``:
-    :mod:`acc_gym.onboard`; None: ideal); the reference drives without it."""
+    :mod:`acc_gym.onboard`; None: ideal); the reference drives without it. ``keep_failures``: also
+    ``"_failures"``, ``[{"label", "scenario", "trace"}]`` of the cases the controller collides in
+    (their world traces: not JSON)."""
     import gymnasium as gym
 
     import acc_gym  # noqa: F401
-    from acc_gym.evaluation.runner import load_controller
+    from acc_gym.evaluation.runner import load_controller, run_episode
 
     if families is not None:
         known = list(dict.fromkeys(case[0] for case in grid()))
@@ -244,14 +247,20 @@ def r157_cases(controller, reference: str = REFERENCE, families=None, car: dict 
     cc = load_controller(reference)
     env = gym.make(ENV_ID)
     mine_env = gym.make(ENV_ID, **car) if car else env
-    cases, errors = [], []
+    cases, errors, failures = [], [], []
     try:
         for k, (family, params, sid, sparams) in enumerate(grid()):  # k: the case's seed, whatever is selected
             if families is not None and family not in families:
                 continue
             sc = _build_case(k, sid, sparams)
             try:
-                mine = collides(mine_env, policy, sc)
+                if keep_failures:  # collides(), with the world recorded
+                    info, trace = run_episode(mine_env, policy, seed=int(sc.seed), scenario=sc, record=True)
+                    mine = bool(info["report"]["metrics"]["collision"])
+                    if mine:
+                        failures.append({"label": f"r157-{family}-{k}", "scenario": sc, "trace": trace})
+                else:
+                    mine = collides(mine_env, policy, sc)
             except Exception as exc:  # noqa: BLE001  (a failing controller is a result)
                 text = str(exc).splitlines()[0] if str(exc) else ""
                 errors.append({"family": family, "params": params, "reason": f"{type(exc).__name__}: {text}"})
@@ -262,9 +271,12 @@ def r157_cases(controller, reference: str = REFERENCE, families=None, car: dict 
     finally:
         env.close()
         mine_env.close()
-    return {"reference": reference, "cases": cases,
-            "preventable_collisions": sum(c["preventable"] is True for c in cases),
-            "non_preventable_collisions": sum(c["preventable"] is False for c in cases), "errors": errors}
+    out = {"reference": reference, "cases": cases,
+           "preventable_collisions": sum(c["preventable"] is True for c in cases),
+           "non_preventable_collisions": sum(c["preventable"] is False for c in cases), "errors": errors}
+    if keep_failures:
+        out["_failures"] = failures
+    return out
 
 
 def plot_map(result: dict, path=None):

@@ -183,3 +183,23 @@ def test_the_cli_prints_the_estimate_and_json(capsys):
     with pytest.raises(SystemExit):
         main(["risk", "--controller", "acc", "--param", "v_sv"])
     assert "expected NAME=VALUE" in capsys.readouterr().err
+
+
+def test_with_an_out_directory_the_first_collisions_are_written_as_openscenario(tmp_path):
+    pytest.importorskip("scenariogeneration", reason="writing OpenSCENARIO needs the osc extra (scenariogeneration)")
+    from acc_gym.evaluation.runner import load_controller
+    from acc_gym.risk.run import MAX_FAILURES_WRITTEN
+    from acc_gym.scenarios.openscenario import run_file
+
+    out = tmp_path / "risk"
+    r = estimate_risk("gm", "cut-in", budget=1024, round_size=512, target_rhw=0.3, root_seed=1, out=out)
+    hits = r.estimate.failures
+    assert hits > 0 and len(r.failures) == min(hits, MAX_FAILURES_WRITTEN)
+    assert r.to_dict()["failures"] == r.failures
+    for f in r.failures:
+        assert f["collided"]  # built again from its draw and driven again: the same collision
+        assert (out / f["xosc"]).is_file() and (out / f["xodr"]).is_file()
+    result, _ = run_file(out / r.failures[0]["xosc"], load_controller("gm"))
+    assert result["collided"]
+    again = estimate_risk("gm", "cut-in", budget=1024, round_size=512, target_rhw=0.3, root_seed=1, out=out)
+    assert again.failures == r.failures  # a resumed run writes the same files

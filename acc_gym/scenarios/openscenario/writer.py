@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import tempfile
 import warnings
 from dataclasses import dataclass
@@ -237,6 +238,13 @@ def write_episode(scenario, trace, out_dir, *, name: str | None = None, controll
     xosc_path = out / f"{name}.xosc"
     _atomic(lambda p: sce.write_xml(p), xosc_path)
     return Export(xosc_path, xodr_path, offset, names, reacts)
+
+
+def file_stem(name: str) -> str:
+    """``name`` (a controller's, a drive's label) as a file name: letters, digits, ``.``, ``_``
+    and ``-`` only, at most 80 characters."""
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "controller"
+    return stem[:80]
 
 
 def _ref_s(x_front: float, length: float, offset: float) -> float:
