@@ -193,7 +193,7 @@ def test_rl_curves_compares_a_controller_with_the_all_human_ring_on_the_same_see
 
 
 def test_the_shipped_ppo_settings_are_valid_sb3_arguments():
-    sb3 = pytest.importorskip("stable_baselines3")
+    sb3 = pytest.importorskip("stable_baselines3", reason="stable-baselines3 is not installed (pip install '.[rl]' or '.[test]')")
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     tuned = _rl_curves().ring_defaults("ppo", ID)

@@ -10,7 +10,7 @@ from acc_gym.evaluation.runner import load_controller
 from acc_gym.leaderboard.failures import file_stem
 from acc_gym.leaderboard.run import run_leaderboard
 
-pytest.importorskip("scenariogeneration", reason="writing OpenSCENARIO needs the osc extra (scenariogeneration)")
+pytest.importorskip("scenariogeneration", reason="scenariogeneration is not installed (pip install '.[osc]' or '.[test]'): nothing writes OpenSCENARIO")
 
 
 @pytest.fixture(scope="module")

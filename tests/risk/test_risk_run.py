@@ -186,7 +186,7 @@ def test_the_cli_prints_the_estimate_and_json(capsys):
 
 
 def test_with_an_out_directory_the_first_collisions_are_written_as_openscenario(tmp_path):
-    pytest.importorskip("scenariogeneration", reason="writing OpenSCENARIO needs the osc extra (scenariogeneration)")
+    pytest.importorskip("scenariogeneration", reason="scenariogeneration is not installed (pip install '.[osc]' or '.[test]'): nothing writes OpenSCENARIO")
     from acc_gym.evaluation.runner import load_controller
     from acc_gym.risk.run import MAX_FAILURES_WRITTEN
     from acc_gym.scenarios.openscenario import run_file

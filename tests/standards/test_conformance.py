@@ -34,7 +34,7 @@ def test_unknown_standard_is_named(capsys):
 
 
 def test_the_failing_drives_are_written_as_openscenario_and_replay(tmp_path):
-    pytest.importorskip("scenariogeneration", reason="writing OpenSCENARIO needs the osc extra (scenariogeneration)")
+    pytest.importorskip("scenariogeneration", reason="scenariogeneration is not installed (pip install '.[osc]' or '.[test]'): nothing writes OpenSCENARIO")
     import numpy as np
 
     from acc_gym.evaluation.runner import load_controller

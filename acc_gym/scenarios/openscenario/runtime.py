@@ -353,6 +353,7 @@ class TrajectoryRun(_Run):
         # the vertices' orientations, when every vertex gives one: the entity's heading between them (interpolated
         # along each segment); the direction of motion is the segment's either way
         self.headings = headings
+        self._advances = None  # advances(), once asked
         seg = [math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(points, points[1:])]
         self.cum = [0.0]
         for d in seg:
@@ -400,7 +401,9 @@ class TrajectoryRun(_Run):
 
     def advances(self) -> bool:
         """Whether the vertices' ``s`` never decreases (a path :meth:`lateral_at` can follow)."""
-        return all(b[0] >= a[0] for a, b in zip(self.points, self.points[1:]))
+        if self._advances is None:
+            self._advances = all(b[0] >= a[0] for a, b in zip(self.points, self.points[1:]))
+        return self._advances
 
     def lateral_at(self, s: float) -> float:
         """The path's lateral position at ``s`` along the road, for a vehicle whose longitudinal

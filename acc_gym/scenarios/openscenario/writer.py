@@ -35,14 +35,14 @@ trajectories (``tests/scenarios/openscenario/test_export.py``, to 1e-6 m).
 from __future__ import annotations
 
 import math
-import os
 import re
-import tempfile
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from acc_gym._io import atomic_write
 
 DT_TOLERANCE = 1e-9  # [m] a step's distance matches its trapezoid within this (else it stopped inside it)
 REAR_AXLE = 0.22  # [-] the reference point's distance ahead of the rear bumper, as a share of the length
@@ -152,7 +152,7 @@ def write_episode(scenario, trace, out_dir, *, name: str | None = None, controll
     odr.add_road(xodr.create_road(xodr.Line(length), id=0, left_lanes=0, right_lanes=n_lanes, lane_width=w))
     odr.adjust_roads_and_lanes()
     xodr_path = out / f"{name}.xodr"
-    _atomic(lambda p: odr.write_xml(p), xodr_path)
+    atomic_write(xodr_path, _xml(odr))
 
     # the vehicles
     vp = VehicleParams()
@@ -236,7 +236,7 @@ def write_episode(scenario, trace, out_dir, *, name: str | None = None, controll
                         xosc.RoadNetwork(roadfile=xodr_path.name), xosc.Catalog(), osc_minor_version=VERSION_MINOR)
     sce.header.description = description
     xosc_path = out / f"{name}.xosc"
-    _atomic(lambda p: sce.write_xml(p), xosc_path)
+    atomic_write(xosc_path, _xml(sce))
     return Export(xosc_path, xodr_path, offset, names, reacts)
 
 
@@ -259,19 +259,17 @@ def _at(t: float):
                              xosc.SimulationTimeCondition(float(t), xosc.Rule.greaterThan))
 
 
-def _atomic(write, path: Path) -> None:
-    """``write(tmp)`` then an atomic rename to ``path``."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # as an ordinary file (mkstemp's are private)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+def _xml(doc):
+    """A scenariogeneration document (its ``get_element()``) as indented UTF-8 XML, for
+    :func:`acc_gym._io.atomic_write`."""
+    import xml.etree.ElementTree as ET
+
+    def write(f):
+        tree = ET.ElementTree(doc.get_element())
+        ET.indent(tree)
+        tree.write(f, encoding="utf-8", xml_declaration=True)
+
+    return write
 
 
 def export(scenario, controller, out_dir, *, name: str | None = None, ego_motion: bool = True,

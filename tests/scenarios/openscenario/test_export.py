@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-pytest.importorskip("scenariogeneration", reason="writing OpenSCENARIO needs the osc extra (scenariogeneration)")
+pytest.importorskip("scenariogeneration", reason="scenariogeneration is not installed (pip install '.[osc]' or '.[test]'): nothing writes OpenSCENARIO")
 
 from acc_gym import scenarios  # noqa: E402
 from acc_gym.cli import main  # noqa: E402
@@ -120,7 +120,7 @@ def test_without_a_controller_the_ego_is_written_as_it_starts(tmp_path, capsys):
 
 
 def test_an_export_passes_asams_checker(tmp_path, capsys):
-    pytest.importorskip("qc_openscenario", reason="ASAM's checker is in the osc extra")
+    pytest.importorskip("qc_openscenario", reason="ASAM's checker is not installed (pip install '.[osc]' or '.[test]')")
     assert main(["export", "ncap2026/acc/cut-in/50-10", "--controller", "acc", "--out", str(tmp_path), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["checked"] is True and out["issues"] == []

@@ -108,7 +108,7 @@ def test_the_bundles_variations_read():
 
 
 def _campaign(tmp_path, controller, **kw):
-    pytest.importorskip("pyarrow")
+    pytest.importorskip("pyarrow", reason="campaigns need pyarrow (pip install '.[campaign]' or '.[test]')")
     from acc_gym.campaigns import run_campaign
     from acc_gym.campaigns.sweep import VariationSweep
 
@@ -136,7 +136,7 @@ def test_a_variation_campaign_runs_every_concrete_scenario_with_the_campaigns_ou
 
 
 def test_a_variation_campaign_resumes_to_the_same_rows(tmp_path):
-    pytest.importorskip("pyarrow")
+    pytest.importorskip("pyarrow", reason="campaigns need pyarrow (pip install '.[campaign]' or '.[test]')")
     from acc_gym.campaigns import load_campaign, run_campaign
     from acc_gym.campaigns.sweep import VariationSweep
 
@@ -152,7 +152,7 @@ def test_a_variation_campaign_resumes_to_the_same_rows(tmp_path):
 
 
 def test_the_command_line_runs_a_bundle_variation(tmp_path, capsys):
-    pytest.importorskip("pyarrow")
+    pytest.importorskip("pyarrow", reason="campaigns need pyarrow (pip install '.[campaign]' or '.[test]')")
     from acc_gym.cli import main
 
     assert main(["campaign", "--variation", "alks:4.6.2", "--controller", "acc", "--out", str(tmp_path / "c"),
