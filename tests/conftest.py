@@ -42,3 +42,15 @@ def readable_module_tmp():
     d = readable_dir("module")
     yield d
     shutil.rmtree(d, ignore_errors=True)
+
+
+def pytest_sessionstart(session):
+    """Under pytest-xdist (the default ``-n auto``), in the controlling process: when the kernel
+    cache is empty (a fresh install, as in CI) compile the package's kernels once, two parts side
+    by side, before the workers start, instead of once in every worker (tests/kernel_warmup.py)."""
+    config = session.config
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
+        return  # a worker, or a run without workers
+    import kernel_warmup
+
+    kernel_warmup.warm(processes=2)
