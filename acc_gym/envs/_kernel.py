@@ -7,8 +7,9 @@ safety check and a collision. On a few scenes that is dozens of tiny numpy opera
 per step; :func:`criteria` does them in one pass, :func:`criteria_reward` weighs them as
 the default :class:`~acc_gym.envs.reward.CriteriaReward`, :func:`settle` ends the step
 (termination, truncation, returns, the scenes whose episode ended), :func:`record` writes
-the step into the episode records and :func:`action_to_accel` maps the actions. ``tests/envs/test_env_kernel.py`` checks them against the
-numpy formulations kept in :mod:`acc_gym.envs.reward` and the scoring module.
+the step into the episode records and :func:`action_to_accel` maps the actions.
+``tests/envs/test_env_kernel.py`` checks them against numpy oracles kept in the tests
+(``tests/envs/reward_oracle.py``, ``tests/score_oracle.py``).
 """
 
 from __future__ import annotations
@@ -103,7 +104,7 @@ def criteria_reward(v, a, jerk, gap, u, v_lead, set_speed, tau1, following, in_b
     """The default reward's terms (:data:`TERMS` rows of ``terms``) and their sum ``reward``.
 
     ``w``: weights ``(band, efficiency, speed, comfort, jerk, safety, collision, lag,
-    jerk_scale)``; the formulas of :meth:`acc_gym.envs.reward.CriteriaReward.reference`.
+    jerk_scale)``; the formulas of :class:`acc_gym.envs.reward.CriteriaReward`'s table.
     """
     n = v.shape[0]
     for i in range(n):
@@ -345,10 +346,9 @@ def margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, r
     and ``bo`` and the scenes' step budgets ``steps`` and steps taken ``k`` (the steps left
     the collision term charges).
 
-    ``w``: :data:`MARGIN_W`. The formulas and the order of the operations are those of
-    :meth:`MarginReward.__call__ <acc_gym.envs.reward.MarginReward.__call__>` (its numpy
-    formulation, the reference: ``tests/envs/test_env_fast_paths.py`` checks the two agree
-    exactly), one scene at a time instead of some forty array operations a step.
+    ``w``: :data:`MARGIN_W`. The formulas are those of :class:`~acc_gym.envs.reward.MarginReward`'s
+    table, one scene at a time (``tests/envs/test_v1_fast_paths.py`` checks them against a numpy
+    oracle, ``tests/envs/reward_oracle.py``).
     """
     (band_w, eff_w, speed_w, resp_w, comfort_w, jerk_w, safety_w, coll_w, lag_w, peak, slope, resp_decel,
      jerk_scale, max_cost, a_counted, jerk_counted, e_counted, over_w, over_scale, reach_w, behind_w, stand_w, stand_gap,

@@ -166,9 +166,6 @@ class ScenarioSampler:
         sid = self.ids[int(self._cdf.searchsorted(rng.random(), side="right"))] if len(self.ids) > 1 else self.ids[0]
         return build(sid, seed=int(rng.integers(0, 2 ** 31 - 1)), drivers=self.drivers)
 
-    def reference_choice(self, rng: np.random.Generator) -> int:
-        """The index ``__call__`` draws, as ``rng.choice`` draws it (the definition it is tested against)."""
-        return int(rng.choice(len(self.ids), p=self.p))
 
 
 class CounterScenarioSampler(ScenarioSampler):

@@ -124,14 +124,3 @@ def margin_features(obs, sensor_range: float = 200.0, b0: float = B0, b1: float 
     out = np.empty((x2.shape[0], x2.shape[1] + low.size))
     append_features(np.ascontiguousarray(x2), float(sensor_range), float(b0), float(b1), low, high, out)
     return out[0] if squeeze else out
-
-
-def reference_features(v, gap, v_rel, tau, sensor_range=200.0, b0=B0, b1=B1) -> dict[str, float]:
-    """The module table's definitions for one vehicle ahead, written out in plain Python
-    (unclipped): what the tests compare the compiled features with."""
-    v_lead = v + v_rel
-    gs = v * tau + v ** 2 / (2 * b1) - v_lead ** 2 / (2 * b0)
-    q = gap - gs
-    return {"gap_safe": gs / sensor_range, "q": q / sensor_range, "q_over_gap_safe": q / max(gs, GAP_SAFE_FLOOR),
-            "time_headway": gap / max(v, SPEED_FLOOR), "inverse_ttc": -v_rel / max(gap, GAP_FLOOR),
-            "a_req": -v_rel ** 2 / (2 * max(gap, GAP_FLOOR)) if v_rel < 0 else 0.0}

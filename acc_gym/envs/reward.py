@@ -84,6 +84,31 @@ class StepIndicators:
                    v_lead=fl[K.F_VLEAD], tau1=tau1, steps_left=steps_left, a_lead=fl[K.F_ALEAD])
 
 
+def _rows(s: StepIndicators) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The rows of :func:`acc_gym.envs._kernel.criteria`'s outputs ``(fl, bo)`` holding the
+    indicators ``s`` (scalars broadcast to the scenes), and their ``set_speed`` and ``tau1``
+    as float arrays: what the compiled reward terms read. Without ``followable`` no vehicle
+    ahead is followable (the lag term is 0); without ``v_lead``, ``a_lead`` or ``tau1``: 0, 0, 1 s."""
+    from acc_gym.envs import _kernel as K
+
+    n = np.shape(s.v)[0]
+
+    def f(x, default=0.0):
+        return np.broadcast_to(np.asarray(default if x is None else x, dtype=float), (n,))
+
+    fl = np.empty((K.N_FLOAT + 1, n))
+    bo = np.empty((K.N_BOOL, n), dtype=bool)
+    for row, x in ((K.F_V, s.v), (K.F_A, s.a), (K.F_JERK, s.jerk), (K.F_GAP, s.gap), (K.F_GS, s.gap_safe),
+                   (K.F_Q, s.q), (K.F_U, s.u), (K.F_VLEAD, s.v_lead), (K.F_ALEAD, s.a_lead)):
+        fl[row] = f(x)
+    fl[K.F_T] = 0.0
+    for row, x in ((K.B_HAS, s.has_lead), (K.B_IN_BAND, s.in_band), (K.B_FOLLOWING, s.following),
+                   (K.B_FREE, s.free), (K.B_VIOLATION, s.violation), (K.B_COLLISION, s.collision),
+                   (K.B_FOLLOWABLE, s.followable)):
+        bo[row] = np.broadcast_to(np.asarray(False if x is None else x, dtype=bool), (n,))
+    return fl, bo, np.ascontiguousarray(f(s.set_speed)), np.ascontiguousarray(f(s.tau1, 1.0))
+
+
 def _check_weights(reward, positive: tuple[str, ...]) -> None:
     """Every field of a reward dataclass a finite number >= 0, those in ``positive`` > 0."""
     name = type(reward).__name__
@@ -120,27 +145,9 @@ class CriteriaReward:
 
     def __call__(self, s: StepIndicators) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """``(reward, terms)`` for one step of ``n`` scenes, in one compiled pass
-        (:func:`acc_gym.envs._kernel.criteria_reward`; the numpy formulation is :meth:`reference`)."""
-        if s.followable is None or s.v_lead is None or s.tau1 is None:
-            return self.reference(s)
-        from acc_gym.envs import _kernel as K
-
-        n = np.shape(s.v)[0]
-
-        def f(x):
-            x = np.asarray(x, dtype=float)
-            return x if x.shape == (n,) else np.broadcast_to(x, (n,))
-
-        def b(x):
-            x = np.asarray(x, dtype=bool)
-            return x if x.shape == (n,) else np.broadcast_to(x, (n,))
-
-        terms = np.empty((len(K.TERMS), n))
-        reward = np.empty(n)
-        K.criteria_reward(f(s.v), f(s.a), f(s.jerk), f(s.gap), f(s.u), f(s.v_lead), f(s.set_speed), f(s.tau1),
-                          b(s.following), b(s.in_band), b(s.free), b(s.violation), b(s.collision), b(s.followable),
-                          float(s.a_comfort), self._w, terms, reward)
-        return reward, dict(zip(K.TERMS, terms))
+        (:func:`acc_gym.envs._kernel.criteria_reward_rows`; missing indicators: :func:`_rows`)."""
+        fl, bo, set_speed, tau1 = _rows(s)
+        return self.from_criteria(fl, bo, set_speed, tau1, s.a_comfort)
 
     def from_criteria(self, fl: np.ndarray, bo: np.ndarray, set_speed: np.ndarray, tau1: np.ndarray,
                       a_comfort: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -156,24 +163,6 @@ class CriteriaReward:
         reward = np.empty(n)
         K.criteria_reward_rows(fl, bo, set_speed, tau1, float(a_comfort), self._w, terms, reward)
         return reward, dict(zip(K.TERMS, terms))
-
-    def reference(self, s: StepIndicators) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """The same reward written with numpy (the definition the compiled one is tested against)."""
-        speed_err = np.minimum(np.abs(s.v - s.set_speed) / (0.2 * s.set_speed), 1.0)
-        terms = {
-            "band": self.band * (s.following & s.in_band),
-            "efficiency": self.efficiency * np.where(s.following, 1.0 - np.nan_to_num(s.u, nan=1.0), 0.0),
-            "speed": self.speed * np.where(s.free, 1.0 - speed_err, 0.0),
-            "comfort": -self.comfort * (s.a / s.a_comfort) ** 2,
-            "jerk": -self.jerk * (s.jerk / self.jerk_scale) ** 2,
-            "safety": -self.safety * s.violation,
-            "collision": -self.collision * s.collision,
-        }
-        if s.followable is not None:
-            far = 1.2 * s.tau1 * s.v_lead + 5.0  # [m] the band's upper edge at the lead's speed, plus 5 m
-            terms["lag"] = -self.lag * np.where(s.followable, np.clip((s.gap - far) / far, 0.0, 1.0), 0.0)
-        terms = {k: np.asarray(v, dtype=float) for k, v in terms.items()}
-        return sum(terms.values()), terms
 
 
 @dataclass(frozen=True)
@@ -368,11 +357,11 @@ class MarginReward:
                       steps: np.ndarray, k: np.ndarray, a_comfort: float) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """What :meth:`__call__` returns for the :class:`StepIndicators` the environment core
         builds from the rows of :func:`acc_gym.envs._kernel.criteria`'s outputs ``fl`` and
-        ``bo``, the scenes' step budgets ``steps`` and steps taken ``k`` (int arrays), in one
-        compiled call (:func:`acc_gym.envs._kernel.margin_reward_rows`, the same operations
-        in the same order: the same values exactly). The core takes this path for a ``MarginReward``
-        (the ``-v1`` ids' default) itself, not for a subclass, which may override
-        :meth:`__call__`."""
+        ``bo``, the scenes' step budgets ``steps`` and steps taken ``k`` (arrays; the collision
+        term charges ``max(steps - k, 0)`` steps left), in one compiled call
+        (:func:`acc_gym.envs._kernel.margin_reward_rows`). The core takes this path for a
+        ``MarginReward`` (the ``-v1`` ids' default) itself, not for a subclass, which may
+        override :meth:`__call__`."""
         from acc_gym.envs import _kernel as K
 
         n = fl.shape[1]
@@ -382,80 +371,15 @@ class MarginReward:
         return reward, dict(zip(K.MARGIN_TERMS, terms))
 
     def __call__(self, s: StepIndicators) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """``(reward, terms)`` for one step of ``n`` scenes, in one compiled pass
+        (:meth:`from_criteria`); ``steps_left`` None: no steps left to charge a collision."""
         if s.followable is None or s.v_lead is None or s.tau1 is None:
             raise ValueError("MarginReward needs the indicators followable, v_lead and tau1 (acc_gym's environments "
                              "give them)")
         if s.a_lead is None and self.stop_demand:
             raise ValueError("MarginReward.stop_demand needs the indicator a_lead (acc_gym's environments give it)")
-        a_lead = np.zeros_like(np.asarray(s.v, dtype=float)) if s.a_lead is None else np.asarray(s.a_lead, dtype=float)
-        v = np.asarray(s.v, dtype=float)
-        following = np.asarray(s.following, dtype=bool)
-        followable = np.asarray(s.followable, dtype=bool)
-        gap = np.asarray(s.gap, dtype=float)
-        v_lead = np.asarray(s.v_lead, dtype=float)
-        q = np.asarray(s.q, dtype=float)  # [m]
-        far = 1.2 * np.asarray(s.tau1, dtype=float) * v_lead + 5.0  # [m]
-        with np.errstate(invalid="ignore"):
-            behind = followable & (gap > far)
-            if self.behind_outside_margin:
-                behind &= ~(q < 0)  # not inside Gapsafe
-            x = np.where(behind, (gap - far) / far, 0.0)
-            lag = np.where(behind, np.where(np.isfinite(x), x / (1.0 + x), 1.0), 0.0)
-        set_speed = np.asarray(s.set_speed, dtype=float)
-        e = np.abs(v - set_speed) / (0.2 * set_speed)
-        speed = np.where(e <= 1.0, 1.0 - e, -self.slope * (np.minimum(e, self.E_COUNTED) - 1.0))
-        width = max(self.peak, 1.0 - self.peak)
-        u = np.nan_to_num(np.asarray(s.u, dtype=float), nan=1.0)
-        tent = np.maximum(0.0, 1.0 - np.abs(u - self.peak) / width)
-        a = np.asarray(s.a, dtype=float)  # [m/s^2]
-        short = a + self.response_decel
-        from acc_gym.envs._kernel import REACH_BAND
-
-        gs = np.asarray(s.gap_safe, dtype=float)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            reach = np.where(following & (gs > 0), np.minimum(np.maximum(q / gs - REACH_BAND, 0.0) / REACH_BAND, 1.0),
-                             0.0)
-            stopped = np.isfinite(gap) & (v_lead < self.STOPPED)  # a stopped vehicle ahead
-            stop_gap = gap - v * v / (2.0 * self.response_decel)  # [m] left if the ego braked at the proper response
-            stand = np.where(stopped, np.clip((self.standstill_gap - stop_gap) / self.standstill_gap, 0.0, 1.0), 0.0)
-            # [m/s^2] paper 001's required deceleration where closing, counted up to A_COUNTED
-            closing = (q < 0) & (gap > 0) & np.isfinite(gap) & (v > v_lead)
-            a_req = np.where(closing, np.minimum((v - v_lead) * (v - v_lead) / (2.0 * gap), self.A_COUNTED), 0.0)
-            demanding = closing & (a_req > self.response_decel)
-            demand = np.where(demanding, np.clip((a + a_req)
-                                                 / (a_req - self.response_decel), 0.0, 1.0), 0.0)
-            # [m/s^2] the deceleration that stops the ego behind a braking vehicle ahead, its own stop counted
-            braking = (q < 0) & (gap > 0) & np.isfinite(gap) & (a_lead < 0)
-            a_stop = np.where(braking, np.minimum(v * v / (2.0 * (gap + v_lead * v_lead / (2.0 * -a_lead))),
-                                                  self.A_COUNTED), 0.0)
-            stopping = braking & (a_stop > self.response_decel)
-            stop = np.where(stopping, np.clip((a + a_stop) / (a_stop - self.response_decel), 0.0, 1.0), 0.0)
-        # [-] the acceleration's rise this step, counted up to JERK_COUNTED, squared in jerk_scale units (release, let_go)
-        rise = (np.minimum(np.maximum(np.asarray(s.jerk, dtype=float), 0.0), self.JERK_COUNTED) / self.jerk_scale) ** 2
-        steps_left = 0.0 if s.steps_left is None else np.maximum(np.asarray(s.steps_left, dtype=float), 0.0)
-        terms = {
-            "band": self.band * (following & np.asarray(s.in_band, dtype=bool)),
-            "efficiency": self.efficiency * np.where(following, tent, 0.0),
-            "speed": self.speed * np.where(np.asarray(s.free, dtype=bool) | behind, speed, 0.0),
-            "response": -self.response * np.where(q < 0, np.clip(short / self.response_decel, 0.0, 1.0), 0.0),
-            "comfort": -self.comfort * (np.minimum(np.abs(a), self.A_COUNTED)
-                                        / s.a_comfort) ** 2,
-            "jerk": -self.jerk * (np.minimum(np.abs(np.asarray(s.jerk, dtype=float)), self.JERK_COUNTED)
-                                  / self.jerk_scale) ** 2,
-            "safety": -self.safety * np.asarray(s.violation, dtype=float),
-            "collision": -np.asarray(s.collision, dtype=float) * (self.collision + self.max_step_cost * steps_left),
-            "lag": -self.lag * lag,
-            "overspeed": -self.overspeed * np.minimum(np.maximum(v - set_speed, 0.0) / (self.overspeed_scale * set_speed),
-                                                      self.E_COUNTED),
-            "reach": -self.reach * reach,
-            "behind": -self.behind * behind.astype(float),
-            "standstill": -self.standstill * stand,
-            "demand": -self.demand * demand,
-            # the acceleration rising inside Gapsafe (kernel: the same operations)
-            "release": -self.release * np.where(q < 0, rise, 0.0),
-            # ... where it ends weaker than the proper response
-            "let_go": -self.let_go * np.where((q < 0) & (a > -self.response_decel), rise, 0.0),
-            "stop_demand": -self.stop_demand * stop,
-        }
-        terms = {k: np.asarray(val, dtype=float) for k, val in terms.items()}
-        return sum(terms.values()), terms
+        fl, bo, set_speed, tau1 = _rows(s)
+        n = fl.shape[1]
+        steps_left = np.ascontiguousarray(np.broadcast_to(np.asarray(0.0 if s.steps_left is None else s.steps_left,
+                                                                     dtype=float), (n,)))
+        return self.from_criteria(fl, bo, set_speed, tau1, steps_left, np.zeros(n), s.a_comfort)

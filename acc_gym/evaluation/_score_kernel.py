@@ -2,7 +2,7 @@
 
 :func:`score` does in one pass over the samples (plus a short one for the speed-keeping
 efficiency when it applies, and one over the lead's steady runs for the overshoot) what
-:func:`acc_gym.evaluation.scoring.score_episode_reference` does with some hundred numpy
+the numpy oracle of the tests (``tests/score_oracle.py``) does with some hundred numpy
 operations: Gapsafe and Q, the safety item (literal, or proper response: runs of Q < 0,
 the grace time, responding), the transients (by the lead's identity, or without one by
 appearing / disappearing vehicles and gap jumps), followable, free, candidate and
@@ -12,7 +12,7 @@ branches, clipped or not), the lane items, comfort and the extra metrics of
 rule as :func:`acc_gym.evaluation.metrics.speed_overshoot` and its compiled
 :func:`acc_gym.evaluation.metrics._gradient`).
 
-Every value equals the reference's exactly: the formulas are written in numpy's
+Every value equals the oracle's exactly: the formulas are written in numpy's
 order of operations, and the three float means (``u`` over car-following samples, ``u``
 of speed keeping, a steady run's lead speed) use :func:`pairwise_sum`, numpy's pairwise
 summation; the other means are shares of counted samples, which numpy computes exactly

@@ -102,8 +102,7 @@ import numpy as np
 from acc_gym._io import json_leaf, json_safe
 from acc_gym._validation import from_mapping
 from acc_gym.evaluation import _score_kernel as _K
-from acc_gym.evaluation.indicators import comfort_j, efficiency_u, gap_safe, in_band, safety_q
-from acc_gym.evaluation.metrics import MIN_DEVIATION, STEADY_ACCEL, STEADY_TIME, damping_ratio, extra_metrics
+from acc_gym.evaluation.metrics import MIN_DEVIATION, STEADY_ACCEL, STEADY_TIME, damping_ratio
 from acc_gym.evaluation.trace import _ARRAY_COLUMNS, _EMPTY, _LANE_CENTRED, EgoTrace, _scalars_valid
 
 DEFAULT_TAU1 = 1.5  # [s] when neither the config nor the trace gives one
@@ -271,45 +270,6 @@ def report_text(report: dict, header: bool = True) -> str:
     return "\n".join(lines)
 
 
-def _after_transients(trace: EgoTrace, transient: float) -> np.ndarray:
-    """True at samples at least ``transient`` s after the start and after any change of the vehicle ahead."""
-    t = trace.t
-    has = trace.has_lead
-    if trace.lead_id is not None:
-        ident = np.where(has, trace.lead_id, -1.0)
-        change = np.concatenate([[False], ident[1:] != ident[:-1]])
-    else:  # no identities: a new target shows as an appearing/disappearing vehicle or a gap jump
-        expected = (trace.v_lead - trace.v)[:-1] * np.diff(t)
-        jump = np.abs(np.diff(np.where(has, trace.gap, 0.0)) - np.where(has[:-1] & has[1:], expected, 0.0)) > 3.0
-        change = np.concatenate([[False], (has[1:] != has[:-1]) | (has[1:] & has[:-1] & jump)])
-    last_event = np.maximum.accumulate(np.where(change, t, t[0]))
-    return t - last_event >= transient
-
-
-def _closing_in(v, v0, d1, gs, set_speed, cfg: ScoringConfig) -> np.ndarray:
-    """Samples where the ego closes in on its leader as fast as it should (module docstring).
-
-    Faster than the leader by more than ``steady_dv``, and either at its set speed or
-    already within the distance in which it must brake at ``approach_decel`` to stop
-    closing before the band's far edge ``(1 + band_width) Gapsafe``.
-    """
-    dv = v - v0
-    excess = d1 - (1.0 + cfg.band_width) * gs  # [m] beyond the band's far edge
-    braking_phase = dv ** 2 >= 2.0 * cfg.approach_decel * excess
-    cruising = np.zeros(v.shape, dtype=bool) if set_speed is None else v >= set_speed - cfg.steady_dv
-    return (dv > cfg.steady_dv) & (cruising | braking_phase)
-
-
-def _proper_response_violations(t, q, seen, a, v, cfg: ScoringConfig, grace: float) -> np.ndarray:
-    """Samples where Q < 0 has outlasted the grace time without a proper response."""
-    neg = seen & (q < 0)
-    responding = (a <= -cfg.response_decel) | (v <= cfg.stop_speed)
-    start = np.concatenate([[True], ~neg[:-1]]) & neg
-    run_start = np.maximum.accumulate(np.where(start, np.arange(t.size), 0))
-    late = neg & (t - t[run_start] > grace)
-    return late & ~responding
-
-
 def judged_tau1(nominal: float | None, declared: float | None, config: ScoringConfig) -> float:
     """The reaction time tau1 an episode is judged at [s]: the config's ``tau1`` if set;
     else the controller's declared time gap, at least ``tau1_floor`` and at most the
@@ -324,7 +284,7 @@ def judged_tau1(nominal: float | None, declared: float | None, config: ScoringCo
 
 _F64 = np.dtype(np.float64)
 _DEFAULT_CONFIG = ScoringConfig()
-_SCALAR_TYPES = (float, int, np.float64)  # a set speed of these types takes the compiled path
+_SCALAR_TYPES = (float, int, np.float64)  # a set speed of these types is read where it is (others: via EgoTrace)
 
 
 def _kernel_params(cfg: ScoringConfig) -> tuple:
@@ -356,37 +316,21 @@ def _kernel_params(cfg: ScoringConfig) -> tuple:
 
 
 def score_episode(trace: EgoTrace, config: ScoringConfig | None = None) -> EpisodeReport:
-    """Score one episode (paper 003 Table 3 under ``config``; defaults: module docstring).
-
-    Computed in one compiled call (:func:`acc_gym.evaluation._score_kernel.score`) with the
-    same report, value for value, as :func:`score_episode_reference`, the numpy definition
-    (``tests/evaluation/test_score_kernel.py`` compares the two). A trace whose columns are
-    not 1-D float64 arrays of one length (an :class:`EgoTrace` built the ordinary way always
-    has them), a set speed that is not a Python or numpy float or int, or a config that is
-    not a :class:`ScoringConfig` takes the reference.
-    """
+    """Score one episode (paper 003 Table 3 under ``config``; defaults: module docstring), in
+    one compiled call (:func:`acc_gym.evaluation._score_kernel.score`). The trace's columns
+    are float64 after its checks; a set speed of another numeric type is read as a float."""
     cfg = config if config is not None else _DEFAULT_CONFIG
     if not isinstance(trace, EgoTrace):
         raise TypeError(f"score_episode needs an EgoTrace, got {type(trace).__name__}")
-    t = trace.t
+    if not isinstance(cfg, ScoringConfig):
+        raise TypeError(f"score_episode's config must be a ScoringConfig, got {type(cfg).__name__}")
     set_speed = trace.set_speed
-    if not (type(cfg) is ScoringConfig and type(t) is np.ndarray and t.ndim == 1
-            and (set_speed is None or type(set_speed) in _SCALAR_TYPES)):
-        return score_episode_reference(trace, config)
-    shape = t.shape
-    cols = (t, trace.v, trace.a, trace.gap, trace.v_lead, trace.lead_id, trace.a_y, trace.d2, trace.d3)
-    for c in cols:
-        if c is not None and not (type(c) is np.ndarray and c.dtype is _F64 and c.shape == shape):
-            return score_episode_reference(trace, config)
-    if shape[0] < 2:
-        return score_episode_reference(trace, config)
+    cols = [_EMPTY if c is None else np.ascontiguousarray(c, dtype=np.float64)
+            for c in (trace.t, trace.v, trace.a, trace.gap, trace.v_lead, trace.lead_id, trace.a_y, trace.d2, trace.d3)]
     kp = _kernel_params(cfg)
     tau1, grace = _tau1_grace(trace.time_gap, trace.declared_time_gap, cfg)
     out = np.empty(_K.N_OUT)
-    _K.score(t, cols[1], cols[2], cols[3], cols[4], _EMPTY if cols[5] is None else cols[5],
-             _EMPTY if cols[6] is None else cols[6], _EMPTY if cols[7] is None else cols[7],
-             _EMPTY if cols[8] is None else cols[8], kp[0], tau1, grace,
-             np.nan if set_speed is None else float(set_speed), out)
+    _K.score(*cols, kp[0], tau1, grace, np.nan if set_speed is None else float(set_speed), out)
     return _report(out.tolist(), cfg, kp, tau1)
 
 
@@ -407,7 +351,7 @@ def score_record(rec: np.ndarray, n: int, set_speed: float | None = None, time_g
     """
     cfg = config if config is not None else _DEFAULT_CONFIG
     if (type(rec) is np.ndarray and rec.dtype is _F64 and rec.ndim == 2 and rec.shape[0] == len(_ARRAY_COLUMNS)
-            and type(n) is int and 2 <= n <= rec.shape[1] and type(cfg) is ScoringConfig
+            and type(n) is int and 2 <= n <= rec.shape[1] and isinstance(cfg, ScoringConfig)
             and (set_speed is None or type(set_speed) in _SCALAR_TYPES)
             and _scalars_valid(set_speed, time_gap, declared_time_gap)):
         kp = _kernel_params(cfg)
@@ -464,97 +408,6 @@ def _report(o: list, cfg: ScoringConfig, kp: tuple, tau1: float) -> EpisodeRepor
     return EpisodeReport(score=o[_K.O_SCORE], qualified=o[_K.O_QUALIFIED] != 0.0,
                          items=(safety, car_following, edge, line), r1=o[_K.O_R1], r2=o[_K.O_R2], u=o[_K.O_U],
                          j_x=o[_K.O_J_X], j_y=o[_K.O_J_Y], tau1=tau1, metrics=metrics, config=cfg)
-
-
-def score_episode_reference(trace: EgoTrace, config: ScoringConfig | None = None) -> EpisodeReport:
-    """Score one episode (paper 003 Table 3 under ``config``; defaults: module docstring).
-
-    The numpy definition the compiled :func:`score_episode` is tested against."""
-    cfg = config if config is not None else ScoringConfig()
-    if not isinstance(trace, EgoTrace):
-        raise TypeError(f"score_episode needs an EgoTrace, got {type(trace).__name__}")
-    tau1 = judged_tau1(trace.time_gap, trace.declared_time_gap, cfg)
-    has = trace.has_lead
-    d1 = np.where(has, trace.gap, np.inf)
-    v0 = np.where(has, trace.v_lead, 0.0)
-    gs = gap_safe(trace.v, v0, tau1, cfg.b0, cfg.b1)
-    q = safety_q(d1, gs)  # +inf without a vehicle ahead
-    seen = has
-
-    # safety
-    collision = bool(np.any(has & (trace.gap <= 0.0)))
-    if cfg.safety == "literal":
-        bad = seen & (q < 0)
-        safe_ok = not np.any(bad)
-        rule = "Q >= 0"
-    else:
-        grace = cfg.response_time if cfg.response_time is not None else tau1
-        bad = _proper_response_violations(trace.t, q, seen, trace.a, trace.v, cfg, grace) | (has & (trace.gap <= 0))
-        safe_ok = not np.any(bad) and not collision
-        rule = "Q >= 0 or proper response"
-    safety = ItemResult("safety", rule, bool(safe_ok), detail={
-        "violations": int(np.sum(bad)),
-        "first_violation_t": float(trace.t[np.argmax(bad)]) if np.any(bad) else None,
-        "min_q": float(np.min(q[seen])) if np.any(seen) else None,
-        "collision": collision})
-
-    # car-following band and efficiency
-    band = in_band(q, gs, cfg.band_width)
-    u_t = efficiency_u(q, gs, cfg.band_width, clip=cfg.clip)
-    moving = (trace.v > cfg.moving_speed) & (v0 > cfg.moving_speed)
-    too_fast = np.zeros(trace.n, dtype=bool) if trace.set_speed is None else v0 > trace.set_speed + cfg.lead_margin + SPEED_TOL
-    followable = has & (v0 > cfg.moving_speed) & ~too_fast  # a vehicle ahead the ego could follow
-    free = ~(has & (trace.gap <= cfg.sensor_range)) | (has & too_fast)  # nothing in view to follow
-    if cfg.band == "literal":
-        candidates = seen & (gs > 0)
-        following = candidates
-        share_needed = 1.0
-    else:
-        settled = _after_transients(trace, cfg.transient)
-        candidates = followable & settled
-        following = candidates & moving & (np.abs(v0 - trace.v) <= cfg.steady_dv) & (gs > 0)
-        share_needed = cfg.band_share
-    applicable = bool(np.any(candidates))
-    approaching = False  # closing in efficiently at every candidate, never following steadily
-    if not applicable:
-        band_ok, share = True, float("nan")
-    elif not np.any(following):
-        share = 0.0
-        approaching = cfg.band != "literal" and bool(np.all(
-            _closing_in(trace.v, v0, d1, gs, trace.set_speed, cfg)[candidates]))
-        band_ok = approaching
-    else:
-        share = float(np.mean(band[following]))
-        band_ok = share >= share_needed - 1e-12
-    car_following = ItemResult("car_following", f"0 < G < {cfg.band_width:g} Gapsafe", bool(band_ok), applicable,
-                               {"share_in_band": share, "samples": int(np.sum(following)),
-                                "share_needed": share_needed, "approaching": approaching})
-    if np.any(following):
-        u = float(np.mean(u_t[following]))
-    elif trace.set_speed is not None and (approaching or not applicable) and np.any(free | candidates):
-        keeping = free | candidates if approaching else free
-        u_speed = ((trace.set_speed - trace.v) / (cfg.band_width * trace.set_speed))[keeping]
-        u = float(np.mean(np.clip(u_speed, 0.0, 1.0) if cfg.clip else u_speed))
-    else:
-        u = float("nan")
-    r1 = 0.0 if math.isnan(u) else (1.0 - u) * 20.0
-
-    # lane items
-    d2, d3 = trace.edge_distance, trace.line_distance
-    edge = ItemResult("road_edge", "D2 > 0", bool(np.all(d2 > 0)), detail={"min_d2": float(d2.min())})
-    line = ItemResult("boundary_line", "D3 > 0", bool(np.all(d3 > 0)), detail={"min_d3": float(d3.min())})
-
-    # comfort
-    j_x = comfort_j(trace.a, cfg.a_x_comfort, clip=cfg.clip)
-    j_y = comfort_j(trace.lateral_accel, cfg.a_y_comfort, clip=cfg.clip)
-    r2 = (1.0 - j_x) * 10.0 + (1.0 - j_y) * 10.0
-
-    items = (safety, car_following, edge, line)
-    qualified = all(it.qualified for it in items)
-    score = 60.0 + r1 + r2 if qualified else ITEM_POINTS * sum(it.qualified for it in items)
-    metrics = extra_metrics(trace, q, seen, cfg.a_x_comfort)
-    return EpisodeReport(score=float(score), qualified=bool(qualified), items=items, r1=float(r1), r2=float(r2),
-                         u=u, j_x=float(j_x), j_y=float(j_y), tau1=float(tau1), metrics=metrics, config=cfg)
 
 
 def score_world(trace, scenarios, config: ScoringConfig | None = None) -> list[EpisodeReport]:

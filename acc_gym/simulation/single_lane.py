@@ -430,28 +430,13 @@ class SingleLaneWorld:
         desired accelerations ``a_des`` ``(B, S)`` (from :meth:`decide`), then the lateral
         positions, neighbours and collision flags of the new state -- one compiled call
         (:func:`acc_gym.simulation._world_kernel.move`, which also makes the new state's
-        observations); :meth:`move_reference` is the same as the separate kernels."""
+        observations)."""
         F, I, obs = self.move_buffers()
         lat = self.lateral
         _K.move(a_des, self.present, self.x, self.v, self._vp, self.dt, self.k, lat.y0, lat.y1, lat.t_start,
                 lat.duration, self.lengths, self.width, float(self.road.lane_width), self.collided,
                 self.sensor_range, F, I, obs, np.empty(self.B))
         self.adopt(F, I, obs)
-
-    def move_reference(self, a_des: np.ndarray) -> None:
-        """:meth:`move` as separate calls: :func:`~acc_gym.simulation._world_kernel.advance`,
-        then :meth:`_refresh` and :func:`~acc_gym.simulation._world_kernel.mark_passed`
-        (observations made on first use)."""
-        x, v, a, applied_des = np.empty((4, self.B, self.S))  # fresh arrays (one allocation): callers may keep the old
-        # Eq. (3) and exact integration (acc_gym.vehicle.applied_acceleration / integrate, compiled)
-        _K.advance(a_des, self.present, self.x, self.v, self._vp, self.dt, x, v, a, applied_des)
-        x_prev = self.x
-        self.x, self.v, self.a, self.a_des = x, v, a, applied_des
-        self.k += 1
-        self._refresh(mark=True)
-        nb = self.neighbours
-        _K.mark_passed(x_prev, self.x, self.lengths, self.present, self.y, self.width, float(self.road.lane_width),
-                       nb.lead, nb.gap, self.collided)
 
     def move_buffers(self) -> tuple:
         """Fresh output arrays for one :meth:`move` done by a caller's compiled kernel

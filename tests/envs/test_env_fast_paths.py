@@ -2,8 +2,9 @@
 
 * :func:`acc_gym.envs._kernel.action_to_accel` (behind :func:`acc_gym.envs.acc_env.action_to_accel`
   for 1-D float actions) equals the numpy formulation, which other inputs still take;
-* :meth:`CriteriaReward.from_criteria` (the core's path for the default reward) equals
-  :meth:`CriteriaReward.__call__` on the :class:`StepIndicators` built from the same rows;
+* :meth:`CriteriaReward.from_criteria` (the core's path for the default reward) and
+  :meth:`CriteriaReward.__call__` on the :class:`StepIndicators` built from the same rows
+  equal the numpy oracle (``reward_oracle.py``);
 * :func:`acc_gym.envs._kernel.settle` equals the numpy bookkeeping it replaced (termination,
   truncation, returns, ended scenes);
 * end to end, an environment with the default reward gives what one with an equal reward
@@ -21,7 +22,9 @@ from acc_gym.envs import _kernel as K
 from acc_gym.envs.acc_env import action_to_accel
 from acc_gym.envs.config import EnvConfig
 from acc_gym.envs.reward import CriteriaReward
+from world_oracle import move_by_parts  # tests/world_oracle.py
 from kernel_rows import indicators, random_rows, rollout  # tests/envs/kernel_rows.py
+from reward_oracle import criteria_oracle  # tests/envs/reward_oracle.py
 
 
 def numpy_action_to_accel(action, config):
@@ -44,18 +47,19 @@ def test_compiled_action_map_equals_the_numpy_formulation(config):
 
 @pytest.mark.parametrize("reward", [CriteriaReward(), CriteriaReward(band=2.0, lag=1.5, jerk_scale=4.0)],
                          ids=["default", "weights"])
-def test_reward_from_criteria_rows_equals_the_indicators_path(reward):
+def test_reward_from_criteria_rows_and_indicators_equal_the_numpy_oracle(reward):
     rng = np.random.default_rng(1)
     n = 300
     fl, bo = random_rows(rng, n)
     set_speed, tau1 = rng.uniform(5.0, 40.0, n), rng.uniform(0.5, 3.0, n)
     ind = indicators(fl, bo, set_speed, tau1)
-    r_slow, terms_slow = reward(ind)
+    r_slow, terms_slow = criteria_oracle(reward, ind)
     r_fast, terms_fast = reward.from_criteria(fl, bo, set_speed, tau1, 2.5)
-    assert np.array_equal(r_fast, r_slow)
-    assert list(terms_fast) == list(terms_slow) == list(K.TERMS)
+    r_call, terms_call = reward(ind)
+    assert np.array_equal(r_fast, r_slow) and np.array_equal(r_call, r_slow)
+    assert list(terms_fast) == list(terms_slow) == list(terms_call) == list(K.TERMS)
     for key in K.TERMS:
-        assert np.array_equal(terms_fast[key], terms_slow[key])
+        assert np.array_equal(terms_fast[key], terms_slow[key]) and np.array_equal(terms_call[key], terms_slow[key])
 
 
 @pytest.mark.parametrize("terminate_on_violation", [False, True])
@@ -111,7 +115,7 @@ def reference_step(core, a_des, active=None):
     reward, settle, record and observe kernels one by one): what the fused kernels replace."""
     w = core.world
     a_prev = w.a[:, 0].copy()
-    w.move_reference(w.decide(a_des))  # the world's separate kernels (advance, then refresh)
+    move_by_parts(w, w.decide(a_des))  # the world's separate kernels (advance, then refresh)
     t = w.t
     cfg = core.config.scoring
     grace = core._grace if core._grace is not None else core.tau1
@@ -233,7 +237,7 @@ def test_scenario_sampler_draws_the_index_rng_choice_draws():
     for seed in range(3000):
         r_fast, r_ref = np.random.default_rng(seed), np.random.default_rng(seed)
         i = int(sampler._cdf.searchsorted(r_fast.random(), side="right"))
-        assert i == sampler.reference_choice(r_ref)
+        assert i == int(r_ref.choice(len(sampler.ids), p=sampler.p))  # numpy's own draw of the index
         assert r_fast.bit_generator.state == r_ref.bit_generator.state
         seen.add(i)
     assert len(seen) == len(config.scenarios)

@@ -24,7 +24,9 @@ import acc_gym  # noqa: F401  (registers the ids)
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.reward import CriteriaReward, StepIndicators
 from acc_gym.evaluation.indicators import efficiency_u, gap_safe, in_band, safety_q
-from acc_gym.evaluation.scoring import ScoringConfig, _after_transients, _proper_response_violations
+from acc_gym.evaluation.scoring import ScoringConfig
+from reward_oracle import criteria_oracle  # tests/envs/reward_oracle.py
+from score_oracle import _after_transients, _proper_response_violations  # tests/score_oracle.py
 
 DT = 0.2
 DT_SEQ = 0.25  # the random sequences' step (the kernel takes dt as an argument)
@@ -62,7 +64,7 @@ def test_compiled_reward_equals_the_reference_exactly(reward):
     for seed in range(15):
         ind = random_indicators(np.random.default_rng(seed), scalar_a_comfort=[3.0, 2.2, 4.5][seed % 3])
         r, terms = reward(ind)
-        r_ref, terms_ref = reward.reference(ind)
+        r_ref, terms_ref = criteria_oracle(reward, ind)
         assert list(terms) == list(K.TERMS) == list(terms_ref)
         for name in K.TERMS:
             np.testing.assert_array_equal(terms[name], terms_ref[name], err_msg=name)
@@ -81,30 +83,30 @@ def test_compiled_reward_equals_the_reference_exactly(reward):
         assert lag > 100
 
 
-def test_compiled_reward_broadcasts_and_falls_back_without_the_lag_inputs():
+def test_compiled_reward_broadcasts_and_reads_missing_lag_inputs_as_no_followable_vehicle():
     reward = CriteriaReward(lag=0.7, speed=0.4)
     ind = random_indicators(np.random.default_rng(3), n=12)
     # scalar set speed and tau1 (broadcast by __call__) give the same as full arrays
     same = replace(ind, set_speed=np.asarray(25.0), tau1=np.asarray(1.4))
     full = replace(ind, set_speed=np.full(12, 25.0), tau1=np.full(12, 1.4))
     r1, t1 = reward(same)
-    r2, t2 = reward.reference(full)
+    r2, t2 = criteria_oracle(reward, full)
     np.testing.assert_array_equal(r1, r2)
     for name in K.TERMS:
         np.testing.assert_array_equal(t1[name], t2[name])
-    # without followable / v_lead / tau1: the reference (no lag term)
+    # without followable / v_lead / tau1: no vehicle ahead is followable, the lag term is 0
     bare = replace(ind, followable=None, v_lead=None, tau1=None)
     r3, t3 = reward(bare)
-    r4, t4 = reward.reference(bare)
-    assert "lag" not in t3 and list(t3) == list(t4)
+    r4, t4 = criteria_oracle(reward, bare)  # the oracle leaves the term out
+    assert list(t3) == list(K.TERMS) and not t3["lag"].any() and list(t4) == [k for k in K.TERMS if k != "lag"]
     np.testing.assert_array_equal(r3, r4)
 
 
 class ReferenceReward(CriteriaReward):
-    """A subclass: the numpy formulation instead of the compiled one."""
+    """A subclass: the numpy oracle instead of the compiled terms."""
 
     def __call__(self, s):
-        return self.reference(s)
+        return criteria_oracle(self, s)
 
 
 class Recorder:

@@ -8,8 +8,20 @@ import numpy as np
 import pytest
 
 import acc_gym  # noqa: F401  (registers the ids)
-from acc_gym.envs.observation import FEATURES, feature_bounds, feature_names, margin_features, reference_features
+from acc_gym.envs.observation import (B0, B1, FEATURES, GAP_FLOOR, GAP_SAFE_FLOOR, SPEED_FLOOR, feature_bounds,
+                                     feature_names, margin_features)
 from acc_gym.wrappers import MarginObservation
+
+
+def reference_features(v, gap, v_rel, tau, sensor_range=200.0, b0=B0, b1=B1) -> dict[str, float]:
+    """The module table's definitions for one vehicle ahead, written out in plain Python
+    (unclipped): the oracle the compiled features are compared with."""
+    v_lead = v + v_rel
+    gs = v * tau + v ** 2 / (2 * b1) - v_lead ** 2 / (2 * b0)
+    q = gap - gs
+    return {"gap_safe": gs / sensor_range, "q": q / sensor_range, "q_over_gap_safe": q / max(gs, GAP_SAFE_FLOOR),
+            "time_headway": gap / max(v, SPEED_FLOOR), "inverse_ttc": -v_rel / max(gap, GAP_FLOOR),
+            "a_req": -v_rel ** 2 / (2 * max(gap, GAP_FLOOR)) if v_rel < 0 else 0.0}
 
 R = 200.0  # [m] the default sensor range
 

@@ -1,8 +1,8 @@
 """The -v1 ids' fast paths (issue 35) equal the paths they short-cut, bit for bit.
 
 * :meth:`MarginReward.from_criteria` (the compiled :func:`acc_gym.envs._kernel.margin_reward_rows`,
-  the core's path for the -v1 default reward) equals :meth:`MarginReward.__call__` (numpy,
-  the reference) on the :class:`StepIndicators` built from the same rows;
+  the core's path for the -v1 default reward) and :meth:`MarginReward.__call__` on the
+  :class:`StepIndicators` built from the same rows equal the numpy oracle (``reward_oracle.py``);
 * :func:`acc_gym.envs._kernel.features32` equals the float64 chain it replaced (fields
   rounded to float32, features appended, all rounded to float32);
 * end to end, every -v1 id with its default reward gives the observations, rewards,
@@ -21,6 +21,7 @@ import kernel_rows  # tests/envs/kernel_rows.py
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.observation import B0, B1, append_features, feature_bounds
 from acc_gym.envs.reward import MarginReward
+from reward_oracle import margin_oracle  # tests/envs/reward_oracle.py
 
 V1 = ["acc_gym/CarFollowing-v1", "acc_gym/SingleLane-v1", "acc_gym/NCAP-v1", "acc_gym/StopAndGo-v1"]
 
@@ -41,7 +42,7 @@ def same_bits(a, b) -> bool:
                                                                  release=0.3, let_go=0.4, stop_demand=0.7),
                                     MarginReward(behind=0.9, lag=1.5, behind_outside_margin=True)],
                          ids=["default", "weights", "outside"])
-def test_margin_reward_from_criteria_rows_equals_the_numpy_reference(reward):
+def test_margin_reward_equals_the_numpy_oracle(reward):
     rng = np.random.default_rng(1)
     n = 2000
     fl, bo = random_rows(rng, n)
@@ -49,12 +50,14 @@ def test_margin_reward_from_criteria_rows_equals_the_numpy_reference(reward):
     set_speed, tau1 = rng.uniform(5.0, 40.0, n), rng.uniform(0.5, 3.0, n)
     steps, k = rng.integers(1, 400, n), rng.integers(0, 420, n)  # some past their budget (steps left < 0)
     ind = kernel_rows.indicators(fl, bo, set_speed, tau1, steps_left=steps - k)
-    r_slow, terms_slow = reward(ind)
+    r_slow, terms_slow = margin_oracle(reward, ind)
     r_fast, terms_fast = reward.from_criteria(fl, bo, set_speed, tau1, steps, k, 2.5)
-    assert list(terms_fast) == list(terms_slow) == list(MarginReward.TERMS) == list(K.MARGIN_TERMS)
+    r_call, terms_call = reward(ind)
+    assert list(terms_fast) == list(terms_slow) == list(terms_call) == list(MarginReward.TERMS) == list(K.MARGIN_TERMS)
     for key in MarginReward.TERMS:
         assert same_bits(terms_fast[key], terms_slow[key]), key
-    assert same_bits(r_fast, r_slow)
+        assert same_bits(terms_call[key], terms_slow[key]), key
+    assert same_bits(r_fast, r_slow) and same_bits(r_call, r_slow)
     # the rows cover every branch: behind with an infinite gap, the response term, collisions
     assert np.isinf(fl[K.F_GAP][bo[K.B_FOLLOWABLE]]).any() and (terms_slow["response"] < 0).any()
     assert (terms_slow["collision"] < -reward.collision).any()

@@ -21,6 +21,7 @@ from acc_gym.drivers.base import Observation
 from acc_gym.simulation import _world_kernel as K
 from acc_gym.simulation.single_lane import LateralPlan, Road, SingleLaneWorld
 from acc_gym.vehicle import VehicleParams, accel_lower, accel_upper, applied_acceleration, integrate
+from world_oracle import move_by_parts  # tests/world_oracle.py
 
 B = 50
 SEEDS = range(12)
@@ -462,7 +463,7 @@ def twin_worlds(seed: int) -> list:
 @pytest.mark.parametrize("seed", range(4))
 def test_fused_move_equals_move(seed):
     """``decide`` + the one-call ``_world_kernel.move`` + ``adopt`` (``move``, and the environment
-    core's path) leave exactly the state the separate kernels (``move_reference``: advance,
+    core's path) leave exactly the state the separate kernels (``move_by_parts``, tests/world_oracle.py: advance,
     then refresh) leave, step after step; ``step`` is ``decide`` + ``move``."""
     worlds = twin_worlds(seed)
     ref, fused = worlds
@@ -472,7 +473,7 @@ def test_fused_move_equals_move(seed):
         for w in worlds:
             for s in (1, 2):
                 w.drivers[s].a = a[:, s].copy()
-        ref.move_reference(ref.decide(a[:, 0]))
+        move_by_parts(ref, ref.decide(a[:, 0]))
         a_all = fused.decide(a[:, 0])
         F, I, obs = fused.move_buffers()
         t = np.empty(B)
@@ -514,7 +515,7 @@ def test_reused_buffers_leave_the_state_fresh_buffers_leave(seed):
         for w in (ref, reused):
             for s in (1, 2):
                 w.drivers[s].a = a[:, s].copy()
-        ref.move_reference(ref.decide(a[:, 0]))
+        move_by_parts(ref, ref.decide(a[:, 0]))
         a_all = reused.decide(a[:, 0])
         buf = reused.reused_buffers()
         assert reused.x.base is not buf.F and buf is not last
