@@ -177,82 +177,25 @@ class MPCDriverParams:
     jerk_emergency: float | np.ndarray = 50.0  # [m/s^3] bound on |du/dt| in emergencies
 
     def __post_init__(self) -> None:
-        if self._scalars_valid() or self._arrays_valid():
-            return
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if value is not None:
-                check_finite(f"MPCDriverParams.{f.name}", value)
-
-        def bad(mask, msg, value):
-            if np.any(mask):
-                raise ValueError(f"MPCDriverParams: {msg}, got {np.asarray(value)[np.broadcast_to(mask, np.shape(value))] if np.ndim(value) else value!r}")
-
-        arr = {f.name: np.asarray(getattr(self, f.name), float) for f in fields(self) if getattr(self, f.name) is not None}
-        bad(arr["a_max"] <= 0, "a_max must be > 0", self.a_max)
-        bad(arr["a_min"] >= 0, "a_min must be < 0", self.a_min)
-        bad(arr["a_sail"] >= 0, "a_sail must be < 0", self.a_sail)
-        bad(arr["a_req_sail"] >= 0, "a_req_sail must be < 0", self.a_req_sail)
-        bad(arr["a_sail"] <= arr["a_min"], "a_sail must be above a_min", self.a_sail)
-        bad(arr["q1"] < 0, "q1 must be >= 0", self.q1)
-        bad(arr["q2"] <= 0, "q2 must be > 0", self.q2)
-        bad(arr["r1"] <= 0, "r1 must be > 0", self.r1)
-        bad(arr["r_jerk"] < 0, "r_jerk must be >= 0", self.r_jerk)
-        bad(arr["c_tg"] < 0, "c_tg (time gap) must be >= 0", self.c_tg)
-        bad(arr["x_min"] <= 0, "x_min must be > 0", self.x_min)
-        bad(arr["v_desired"] <= 0, "v_desired must be > 0", self.v_desired)
-        bad(arr["jerk_max"] <= 0, "jerk_max must be > 0", self.jerk_max)
-        bad(arr["jerk_emergency"] < arr["jerk_max"], "jerk_emergency must be >= jerk_max", self.jerk_emergency)
-        if self.v_max is not None:
-            bad(arr["v_max"] < arr["v_desired"], "v_max must be >= v_desired", self.v_max)
-
-    def _scalars_valid(self) -> bool:
-        """True when every field is a plain number and every check below passes (one driver:
-        checked with Python floats; anything else, or any failure, takes the array checks,
-        which raise the message)."""
-        d = self.__dict__
+        """Every value finite and every rule of :data:`_RULES` met, for plain numbers and arrays
+        alike (broadcast against each other); the first failure raises naming the field and the
+        values that break it."""
+        d = {}
         for name in _FIELD_NAMES:
-            value = d[name]
-            if value is None:
-                continue
-            if type(value) not in (float, int, np.float64) or not math.isfinite(value):
-                return False
-        v_max = d["v_max"]
-        return (d["a_max"] > 0 and d["a_min"] < 0 and d["a_sail"] < 0 and d["a_req_sail"] < 0
-                and d["a_sail"] > d["a_min"] and d["q1"] >= 0 and d["q2"] > 0 and d["r1"] > 0 and d["r_jerk"] >= 0
-                and d["c_tg"] >= 0 and d["x_min"] > 0 and d["v_desired"] > 0 and d["jerk_max"] > 0
-                and d["jerk_emergency"] >= d["jerk_max"] and (v_max is None or v_max >= d["v_desired"]))
-
-    def _arrays_valid(self) -> bool:
-        """True when every field is a float array of one shape (or a plain number, broadcast to
-        it: a sampled batch leaves ``r_jerk`` at its default) and every check passes, tested on
-        one stacked array (a failure falls through to the field-by-field checks and their messages)."""
-        d = self.__dict__
-        first = d["a_max"]
-        if type(first) is not np.ndarray:
-            return False
-        shape = first.shape
-        cols = []
-        for name in _FIELD_NAMES:
-            value = d[name]
-            if value is None:
-                continue
-            if type(value) in (float, int):
-                value = np.full(shape, float(value))
-            elif type(value) is not np.ndarray or value.shape != shape or value.dtype != np.float64:
-                return False
-            cols.append(value)
-        a = np.stack(cols)
-        if not np.isfinite(a).all():
-            return False
-        g = dict(zip((n for n in _FIELD_NAMES if d[n] is not None), a))
-        ok = ((g["a_max"] > 0) & (g["a_min"] < 0) & (g["a_sail"] < 0) & (g["a_req_sail"] < 0)
-              & (g["a_sail"] > g["a_min"]) & (g["q1"] >= 0) & (g["q2"] > 0) & (g["r1"] > 0) & (g["r_jerk"] >= 0)
-              & (g["c_tg"] >= 0) & (g["x_min"] > 0) & (g["v_desired"] > 0) & (g["jerk_max"] > 0)
-              & (g["jerk_emergency"] >= g["jerk_max"]))
-        if "v_max" in g:
-            ok &= g["v_max"] >= g["v_desired"]
-        return bool(ok.all())
+            value = self.__dict__[name]
+            if value is not None and type(value) not in _PLAIN_NUMBERS:
+                value = np.asarray(value, dtype=float)
+                if not np.isfinite(value).all():
+                    check_finite(f"MPCDriverParams.{name}", value)  # raises, naming it
+            elif value is not None and not math.isfinite(value):
+                check_finite(f"MPCDriverParams.{name}", value)
+            d[name] = value
+        for name, rule, message in _RULES:
+            ok = rule(d)
+            if not (ok if type(ok) is bool else ok.all()):
+                value = np.asarray(d[name], dtype=float)
+                got = value[~np.broadcast_to(ok, value.shape)] if value.ndim else d[name]
+                raise ValueError(f"MPCDriverParams: {message}, got {got!r}")
 
     @property
     def speed_limit(self):
@@ -305,6 +248,25 @@ class MPCDriverParams:
 
 
 _FIELD_NAMES = tuple(f.name for f in fields(MPCDriverParams))
+_PLAIN_NUMBERS = (float, int, np.float64)  # kept as given; anything else becomes a float array
+# MPCDriverParams' rules: (the field a failure names, the check over the values, the message)
+_RULES = (
+    ("a_max", lambda d: d["a_max"] > 0, "a_max must be > 0"),
+    ("a_min", lambda d: d["a_min"] < 0, "a_min must be < 0"),
+    ("a_sail", lambda d: d["a_sail"] < 0, "a_sail must be < 0"),
+    ("a_req_sail", lambda d: d["a_req_sail"] < 0, "a_req_sail must be < 0"),
+    ("a_sail", lambda d: d["a_sail"] > d["a_min"], "a_sail must be above a_min"),
+    ("q1", lambda d: d["q1"] >= 0, "q1 must be >= 0"),
+    ("q2", lambda d: d["q2"] > 0, "q2 must be > 0"),
+    ("r1", lambda d: d["r1"] > 0, "r1 must be > 0"),
+    ("r_jerk", lambda d: d["r_jerk"] >= 0, "r_jerk must be >= 0"),
+    ("c_tg", lambda d: d["c_tg"] >= 0, "c_tg (time gap) must be >= 0"),
+    ("x_min", lambda d: d["x_min"] > 0, "x_min must be > 0"),
+    ("v_desired", lambda d: d["v_desired"] > 0, "v_desired must be > 0"),
+    ("jerk_max", lambda d: d["jerk_max"] > 0, "jerk_max must be > 0"),
+    ("jerk_emergency", lambda d: d["jerk_emergency"] >= d["jerk_max"], "jerk_emergency must be >= jerk_max"),
+    ("v_max", lambda d: d["v_max"] is None or d["v_max"] >= d["v_desired"], "v_max must be >= v_desired"),
+)
 
 # Paper 001, Table 4 (a_max, a_min, a_req_sail, a_sail, q1, r1). The paper gives no time
 # gap, minimum gap or desired speed for them: the defaults of MPCDriverParams apply.

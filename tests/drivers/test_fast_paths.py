@@ -90,17 +90,20 @@ def test_lead_terms_equal_their_numpy_expressions(horizon):
         assert qp.gain_lead_sums is qp.gain_lead_sums and not qp.gain_lead_sums.flags.writeable
 
 
-def test_batches_with_plain_number_fields_take_the_stacked_check():
+def test_batches_with_plain_number_fields_are_checked_against_them():
     rng = np.random.default_rng(2)
     p = sample_drivers(rng, 5, 20.0)
-    assert type(p.r_jerk) is float and p._arrays_valid()  # the sampler's batches: no field-by-field pass
+    assert type(p.r_jerk) is float  # the sampler's batches: arrays beside plain numbers
     with pytest.raises(ValueError, match="r_jerk must be >= 0"):
         MPCDriverParams(**{**p.__dict__, "r_jerk": -1.0})
     with pytest.raises(ValueError, match="a_max must be > 0"):
         MPCDriverParams(**{**p.__dict__, "a_max": np.array([1.0, -1.0, 1.0, 1.0, 1.0])})
     with pytest.raises(ValueError, match="finite"):
         MPCDriverParams(**{**p.__dict__, "r_jerk": math.inf})
-    assert not MPCDriverParams(**{**p.__dict__, "r_jerk": True})._arrays_valid()  # bools are not numbers here
+    with pytest.raises(ValueError, match=r"a_sail must be above a_min, got array\(\[-3\.\]\)"):
+        MPCDriverParams(**{**p.__dict__, "a_sail": np.array([-0.1, -0.1, -3.0, -0.1, -0.1]), "a_min": -2.5})
+    with pytest.raises(ValueError, match="jerk_emergency must be >= jerk_max, got 1.0"):
+        MPCDriverParams(**{**p.__dict__, "jerk_emergency": 1.0})
 
 
 # ----------------------------------------------------------------------------- this release's fast paths
