@@ -221,14 +221,22 @@ def observe(o, set_speed, time_gap, sensor_range, v2v, low, high, out):  # pragm
             out[i, j] = min(max(row[j], low[j]), high[j])
 
 
+def accel_of_action(x: float, accel_max: float, decel_max: float) -> float:
+    """One finite action to a desired acceleration [m/s^2]: clipped to [-1, 1], then
+    ``x * accel_max`` for ``x >= 0`` and ``x * decel_max`` below. The one definition: the single
+    env calls it on a Python float, :func:`action_to_accel` compiled on arrays."""
+    x = min(max(x, -1.0), 1.0)
+    return x * accel_max if x >= 0 else x * decel_max
+
+
+_accel_of_action = numba.njit(cache=True, error_model="numpy")(accel_of_action)
+
+
 @numba.njit(cache=True, error_model="numpy")
 def action_to_accel(action, accel_max, decel_max, out):  # pragma: no cover - compiled
-    """Actions ``(n,)`` to desired accelerations in ``out``: clipped to [-1, 1], then ``a * accel_max``
-    for ``a >= 0`` and ``a * decel_max`` below -- :func:`acc_gym.envs.acc_env.action_to_accel`'s
-    numpy formulation (its reference) for finite actions, in one call instead of four."""
+    """:func:`accel_of_action` of every action ``(n,)``, into ``out``."""
     for i in range(action.shape[0]):
-        a = min(max(action[i], -1.0), 1.0)
-        out[i] = a * accel_max if a >= 0 else a * decel_max
+        out[i] = _accel_of_action(action[i], accel_max, decel_max)
 
 
 @numba.njit(cache=True, error_model="numpy")

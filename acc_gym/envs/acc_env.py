@@ -69,17 +69,13 @@ def make_reward(reward_fn, config: EnvConfig):
 
 
 def action_to_accel(action: np.ndarray, config: EnvConfig) -> np.ndarray:
-    """Actions in [-1, 1] (clipped) to desired accelerations [m/s^2]: ``+1 -> accel_max``, ``-1 -> -decel_max``.
-
-    A 1-D float array of finite actions (what :func:`check_actions` returns) takes the
-    compiled :func:`acc_gym.envs._kernel.action_to_accel`; anything else this numpy
-    formulation, which is the kernel's reference."""
-    if type(action) is np.ndarray and action.ndim == 1 and action.dtype == np.float64:
-        out = np.empty(action.shape[0])
-        _K.action_to_accel(action, float(config.accel_max), float(config.decel_max), out)
-        return out
-    a = np.minimum(np.maximum(action, -1.0), 1.0)  # np.clip, at a fraction of its call overhead
-    return np.where(a >= 0, a * config.accel_max, a * config.decel_max)
+    """Actions in [-1, 1] (clipped) to desired accelerations [m/s^2]: ``+1 -> accel_max``, ``-1 -> -decel_max``
+    (:func:`acc_gym.envs._kernel.accel_of_action` of each, compiled), as float64 of the actions' shape."""
+    a = np.asarray(action, dtype=float)
+    flat = a if a.ndim == 1 else a.reshape(-1)
+    out = np.empty(flat.shape[0])
+    _K.action_to_accel(flat, float(config.accel_max), float(config.decel_max), out)
+    return out if a.ndim == 1 else out.reshape(a.shape)
 
 
 def build_named(generator, config: EnvConfig, scenario_id: str, seed: int) -> Scenario:
@@ -372,10 +368,9 @@ class ACCEnv(gym.Env):
         if self._needs_reset:
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
         x = float(action[0]) if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f" else None
-        if x is not None and math.isfinite(x):  # the usual action: one finite float, mapped with Python floats
-            x = min(max(x, -1.0), 1.0)  # the operations of action_to_accel's kernel, so the same values exactly
+        if x is not None and math.isfinite(x):  # the usual action: one finite float, mapped as a Python float
             a_des = self._a_des  # the env's own (1,) array: the step reads it, nothing keeps it
-            a_des[0] = x * self._accel_max if x >= 0 else x * self._decel_max
+            a_des[0] = _K.accel_of_action(x, self._accel_max, self._decel_max)
         else:
             a_des = action_to_accel(check_actions(action, (1,)), self.config)
         core = self.core

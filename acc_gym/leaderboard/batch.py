@@ -5,8 +5,8 @@ with the configuration, scenario generator and reward of ``gym.make(env_id)``'s
 environment, starts a given scenario in a row, and steps every row with one action each.
 It does per row what :class:`acc_gym.envs.acc_env.ACCEnv` does for its one scene -- the
 same observation bounds and dtype (float32), the same action mapping
-(:func:`~acc_gym.envs.acc_env.action_to_accel`: the operations of the single env's
-fast path), the same final info -- and the rows of an ``EpisodeBatch`` do not interact
+(:func:`~acc_gym.envs.acc_env.action_to_accel`: the single env's
+:func:`~acc_gym.envs._kernel.accel_of_action`), the same final info -- and the rows of an ``EpisodeBatch`` do not interact
 (``tests/envs/test_vector_env.py``: a vector env equals single envs exactly), so an
 episode's score here is the score ``acc-gym evaluate`` gives it
 (``tests/leaderboard/test_leaderboard.py`` checks every built-in). Stepping 16 scenes in

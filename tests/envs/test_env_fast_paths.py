@@ -1,7 +1,7 @@
 """The environment's fast paths equal the slow paths they short-cut, bit for bit.
 
-* :func:`acc_gym.envs._kernel.action_to_accel` (behind :func:`acc_gym.envs.acc_env.action_to_accel`
-  for 1-D float actions) equals the numpy formulation, which other inputs still take;
+* :func:`acc_gym.envs._kernel.action_to_accel` (behind :func:`acc_gym.envs.acc_env.action_to_accel`)
+  equals a numpy formulation;
 * :meth:`CriteriaReward.from_criteria` (the core's path for the default reward) and
   :meth:`CriteriaReward.__call__` on the :class:`StepIndicators` built from the same rows
   equal the numpy oracle (``reward_oracle.py``);
@@ -40,9 +40,11 @@ def test_compiled_action_map_equals_the_numpy_formulation(config):
     ref = numpy_action_to_accel(a, config)
     assert out.dtype == np.float64 and out.shape == a.shape
     assert np.array_equal(out.view(np.int64), ref.view(np.int64))  # signed zeros included
-    # other inputs (float32, 2-D, lists) keep the numpy path
+    # other inputs (float32, 2-D): the mapping of their values as float64, in their shape
     for other in (a.astype(np.float32), a.reshape(-1, 1)):
-        assert np.array_equal(action_to_accel(other, config), numpy_action_to_accel(other, config))
+        got = action_to_accel(other, config)
+        assert got.dtype == np.float64 and got.shape == other.shape
+        assert np.array_equal(got, numpy_action_to_accel(other.astype(float), config))
 
 
 @pytest.mark.parametrize("reward", [CriteriaReward(), CriteriaReward(band=2.0, lag=1.5, jerk_scale=4.0)],
