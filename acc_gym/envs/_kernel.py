@@ -4,7 +4,7 @@
 per-sample definitions the 100-point score uses (:mod:`acc_gym.evaluation.scoring`):
 Gapsafe and Q, the band, car-following and free samples, ``u_t``, the proper-response
 safety check and a collision. On a few scenes that is dozens of tiny numpy operations
-per step; :func:`criteria` does them in one pass, :func:`criteria_reward` weighs them as
+per step; :func:`criteria` does them in one pass, :func:`criteria_reward_rows` weighs them as
 the default :class:`~acc_gym.envs.reward.CriteriaReward`, :func:`settle` ends the step
 (termination, truncation, returns, the scenes whose episode ended), :func:`record` writes
 the step into the episode records and :func:`action_to_accel` maps the actions.
@@ -31,7 +31,7 @@ F_T = N_FLOAT  # the scene's time [s]: the extra row step() writes after criteri
 # rows of its boolean output
 B_HAS, B_IN_BAND, B_FOLLOWING, B_FREE, B_VIOLATION, B_COLLISION, B_FOLLOWABLE = range(7)
 N_BOOL = 7
-# the reward terms of criteria_reward(), in info["rewards"] order
+# the reward terms of criteria_reward_rows(), in info["rewards"] order
 TERMS = ("band", "efficiency", "speed", "comfort", "jerk", "safety", "collision", "lag")
 # step()'s reward: none (a reward object computes it), CriteriaReward's, MarginReward's
 REWARD_NONE, REWARD_CRITERIA, REWARD_MARGIN = 0, 1, 2
@@ -99,43 +99,35 @@ def criteria(t, v, a, lead_all, gap_all, a_prev, dt, set_speed, tau1, grace, cfg
 
 
 @numba.njit(cache=True, error_model="numpy")
-def criteria_reward(v, a, jerk, gap, u, v_lead, set_speed, tau1, following, in_band, free, violation, collision,
-                    followable, a_comfort, w, terms, reward):  # pragma: no cover - compiled
-    """The default reward's terms (:data:`TERMS` rows of ``terms``) and their sum ``reward``.
+def criteria_reward_rows(fl, bo, set_speed, tau1, a_comfort, w, terms, reward):  # pragma: no cover - compiled
+    """The default reward's terms (:data:`TERMS` rows of ``terms``) and their sum ``reward``, from
+    the rows of :func:`criteria`'s outputs ``fl`` and ``bo``.
 
     ``w``: weights ``(band, efficiency, speed, comfort, jerk, safety, collision, lag,
     jerk_scale)``; the formulas of :class:`acc_gym.envs.reward.CriteriaReward`'s table.
     """
-    n = v.shape[0]
+    n = fl.shape[1]
     for i in range(n):
         vs = set_speed[i]
-        speed_err = min(abs(v[i] - vs) / (0.2 * vs), 1.0)
-        ui = u[i]
-        terms[0, i] = w[0] * (1.0 if (following[i] and in_band[i]) else 0.0)
-        terms[1, i] = w[1] * ((1.0 - (1.0 if math.isnan(ui) else ui)) if following[i] else 0.0)
-        terms[2, i] = w[2] * ((1.0 - speed_err) if free[i] else 0.0)
-        terms[3, i] = -w[3] * (a[i] / a_comfort) ** 2
-        terms[4, i] = -w[4] * (jerk[i] / w[8]) ** 2
-        terms[5, i] = -w[5] * (1.0 if violation[i] else 0.0)
-        terms[6, i] = -w[6] * (1.0 if collision[i] else 0.0)
-        if followable[i]:
-            far = 1.2 * tau1[i] * v_lead[i] + 5.0  # [m]
-            terms[7, i] = -w[7] * min(max((gap[i] - far) / far, 0.0), 1.0)
+        following = bo[B_FOLLOWING, i]
+        speed_err = min(abs(fl[F_V, i] - vs) / (0.2 * vs), 1.0)
+        ui = fl[F_U, i]
+        terms[0, i] = w[0] * (1.0 if (following and bo[B_IN_BAND, i]) else 0.0)
+        terms[1, i] = w[1] * ((1.0 - (1.0 if math.isnan(ui) else ui)) if following else 0.0)
+        terms[2, i] = w[2] * ((1.0 - speed_err) if bo[B_FREE, i] else 0.0)
+        terms[3, i] = -w[3] * (fl[F_A, i] / a_comfort) ** 2
+        terms[4, i] = -w[4] * (fl[F_JERK, i] / w[8]) ** 2
+        terms[5, i] = -w[5] * (1.0 if bo[B_VIOLATION, i] else 0.0)
+        terms[6, i] = -w[6] * (1.0 if bo[B_COLLISION, i] else 0.0)
+        if bo[B_FOLLOWABLE, i]:
+            far = 1.2 * tau1[i] * fl[F_VLEAD, i] + 5.0  # [m]
+            terms[7, i] = -w[7] * min(max((fl[F_GAP, i] - far) / far, 0.0), 1.0)
         else:
             terms[7, i] = -w[7] * 0.0
         total = 0.0
         for k in range(terms.shape[0]):
             total += terms[k, i]
         reward[i] = total
-
-
-@numba.njit(cache=True, error_model="numpy")
-def criteria_reward_rows(fl, bo, set_speed, tau1, a_comfort, w, terms, reward):  # pragma: no cover - compiled
-    """:func:`criteria_reward` on the rows of :func:`criteria`'s outputs ``fl`` and ``bo``
-    (sliced here, where a slice costs nothing, rather than as a dozen numpy views)."""
-    criteria_reward(fl[F_V], fl[F_A], fl[F_JERK], fl[F_GAP], fl[F_U], fl[F_VLEAD], set_speed, tau1,
-                    bo[B_FOLLOWING], bo[B_IN_BAND], bo[B_FREE], bo[B_VIOLATION], bo[B_COLLISION], bo[B_FOLLOWABLE],
-                    a_comfort, w, terms, reward)
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -1,7 +1,8 @@
-"""The compiled environment kernels (``acc_gym.envs._kernel``) equal their numpy references.
+"""The compiled environment kernels (``acc_gym.envs._kernel``) equal numpy oracles.
 
-* ``criteria_reward`` (behind :meth:`CriteriaReward.__call__`) equals :meth:`CriteriaReward.reference`
-  exactly, reward and every term; other reward objects still plug in through ``reward_fn=``;
+* ``criteria_reward_rows`` (behind :meth:`CriteriaReward.__call__`) equals the oracle
+  ``reward_oracle.criteria_oracle`` exactly, reward and every term; other reward objects still plug
+  in through ``reward_fn=``;
 * ``criteria`` equals a numpy reference written here from the definitions of
   :mod:`acc_gym.evaluation.scoring` / :mod:`acc_gym.evaluation.indicators`, step by step and
   over whole random sequences (including its state arrays ``lead_prev``, ``last_change``,
