@@ -12,6 +12,8 @@ so the kernel's feasibility check and the QP solvers read the same numbers.
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
@@ -68,6 +70,53 @@ def release_distance(P, i):
     ``b = -a_min``."""
     b = -P[i, A_MIN]
     return b * b * b / (24.0 * P[i, JERK] * P[i, JERK])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def only_chords_short(P, i, u, G, lower, upper, tol, tp_n, tv_n, aseq, v, gap, v_lead, stop_gap, tn):
+    """Whether driver ``i``'s plan ``u`` ``(N,)`` (no slack) keeps every bound row but the
+    terminal chords (``(u, 0)``, then ``G (u, 0)``: ``G`` the general rows but the chords,
+    ``lower``/``upper`` the driver's first ``5 N`` bounds) within ``tol`` [m, m/s, m/s^2], and
+    the exact terminal condition: from the plan's end (``tp_n``/``tv_n``: the last rows of the
+    position and speed prediction matrices, ``tn`` the horizon [s]), braking at ``a_min``
+    (reached at ``jerk_max``) stops clear of the vehicle ahead (``gap``, ``v_lead``, its
+    predicted accelerations ``aseq``) and of the stop position ``stop_gap``, within ``tol``
+    (:meth:`acc_gym.drivers.mpc.MPCDriver._only_chords_short` says why)."""
+    n = u.shape[0]
+    for k in range(n):
+        if u[k] < lower[k] - tol or u[k] > upper[k] + tol:
+            return False
+    if 0.0 < lower[n] - tol or 0.0 > upper[n] + tol:  # the slack, 0
+        return False
+    for r in range(G.shape[0]):
+        acc = 0.0
+        for k in range(n):
+            acc += G[r, k] * u[k]
+        if acc < lower[n + 1 + r] - tol or acc > upper[n + 1 + r] + tol:
+            return False
+    b, jerk = -P[i, A_MIN], P[i, JERK]
+    x_min = P[i, X_MIN]
+    dp = 0.0
+    dv = 0.0
+    for k in range(n):
+        dp += tp_n[k] * u[k]
+        dv += tv_n[k] * u[k]
+    v_n = v + dv
+    if math.isfinite(gap):
+        dpl = 0.0
+        dvl = 0.0
+        for k in range(n):
+            dpl += tp_n[k] * aseq[k]
+            dvl += tv_n[k] * aseq[k]
+        room = gap + tn * v_lead + dpl - tn * v - dp - x_min
+        w = max(v_n - (v_lead + dvl), 0.0)
+        if room < w * w / (2.0 * b) + w * b / (2.0 * jerk) - tol:
+            return False
+    if math.isfinite(stop_gap):
+        w = max(v_n, 0.0)
+        if stop_gap - tn * v - dp < w * w / (2.0 * b) + w * b / (2.0 * jerk) - tol:
+            return False
+    return True
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -379,77 +428,95 @@ def _prefix(x, p0, p1):
         p1[j] = a1
 
 
-@numba.njit(cache=True)
-def _row_dot(kind, k, x, p0, p1, dt, zoh, beta):
-    """``g_c . x`` for the row of constraint (kind, k), in O(1) from the prefix sums of ``x``.
+# The helpers called once per row or member take scalars only: numba passes an array argument
+# with reference-count updates that cost about 0.1 us a call (measured: a row's product through
+# array arguments 146 ns, from the values at its index 3 ns), which made these loops 10-50 times
+# slower than their arithmetic. The callers read the values at the row's index.
+
+@numba.njit(cache=True, inline="always")
+def _at(code, n):
+    """``(kind, k, k1, kb)`` of the active constraint ``code``: its kind and index, and the
+    indices :func:`_row_value`'s ``x[k + 1]`` and ``beta[k]`` are read at (in range for
+    every kind; used only by the rate and terminal rows)."""
+    kind, k = _kind(code >> 1, n)
+    return kind, k, (k + 1 if k + 1 < n else k), (k if kind >= 6 else 0)
+
+
+@numba.njit(cache=True, inline="always")
+def _row_value(kind, k, eh, xk, xk1, p0k, p1k, p0e, p1e, bk, dt, h):
+    """``g_c . x`` for the row of constraint (kind, k), in O(1) from the prefix sums of ``x``
+    (``p0[k] = sum_{j<=k} x_j``, ``p1[k] = sum_{j<=k} j x_j``), given the values at its
+    index: ``x[k]``, ``x[k + 1]``, ``p0[k]``, ``p1[k]``, at the horizon's end ``e = N - 1``
+    ``p0[e]``, ``p1[e]`` (``eh = e + h``), and the terminal row's slope ``beta[k]``.
 
     Position rows use ``sum_{j<=k} dt^2 (k - j + h) x_j = dt^2 ((k + h) p0[k] - p1[k])``
     (``h = 1/2`` for the exact discretisation, 0 for Euler)."""
-    n = x.shape[0]
-    h = 0.5 if zoh else 0.0
     if kind == 0:
-        return x[k]
+        return xk
     if kind == 4:
-        return x[k + 1] - x[k]
+        return xk1 - xk
     if kind >= 6:  # terminal row k: position plus beta_k times speed at the horizon's end
-        e = n - 1
-        return dt * dt * ((e + h) * p0[e] - p1[e]) + beta[k] * dt * p0[e]
+        return dt * dt * (eh * p0e - p1e) + bk * dt * p0e
     if kind == 1:
-        return dt * dt * ((k + h) * p0[k] - p1[k])
+        return dt * dt * ((k + h) * p0k - p1k)
     if kind == 2:
-        return -dt * p0[k]
-    return dt * p0[k]
+        return -dt * p0k
+    return dt * p0k
+
+
+@numba.njit(cache=True, inline="always")
+def _signed(code, d):
+    """``n_a . x`` of the active constraint ``code`` written as ``n_a . u >= b_a`` from its
+    row's ``g_c . x`` = ``d``: the row on a lower bound, minus it on an upper bound."""
+    return -d if (code & 1) else d
+
+
+@numba.njit(cache=True, inline="always")
+def _bound(code, lo_c, up_c):
+    """``b_a`` of ``n_a . u >= b_a`` from constraint ``code``'s bounds: the lower bound, or
+    minus the upper bound."""
+    return -up_c if (code & 1) else lo_c
 
 
 @numba.njit(cache=True)
 def _row_hinv(kind, k, hc, out, dt, zoh, beta):
-    """``out = H^-1 g_c`` in O(N) from the column sums ``hc[0][:, k] = sum_{j<=k} H^-1[:, j]``
-    and ``hc[1][:, k] = sum_{j<=k} j H^-1[:, j]``."""
+    """``out = H^-1 g_c`` in O(N) from the column sums laid out by column
+    (:attr:`CondensedQP.hinv_columns <acc_gym.drivers.qp.CondensedQP.hinv_columns>`):
+    ``hc[0][k, :] = sum_{j<=k} H^-1[:, j]`` and ``hc[1][k, :] = sum_{j<=k} j H^-1[:, j]``."""
     c0 = hc[0]
     c1 = hc[1]
     n = out.shape[0]
     h = 0.5 if zoh else 0.0
     if kind == 0:
         for r in range(n):
-            out[r] = c0[r, k] - (c0[r, k - 1] if k > 0 else 0.0)
+            out[r] = c0[k, r] - (c0[k - 1, r] if k > 0 else 0.0)
     elif kind == 4:
         for r in range(n):
-            out[r] = (c0[r, k + 1] - c0[r, k]) - (c0[r, k] - (c0[r, k - 1] if k > 0 else 0.0))
+            out[r] = (c0[k + 1, r] - c0[k, r]) - (c0[k, r] - (c0[k - 1, r] if k > 0 else 0.0))
     elif kind >= 6:
         e = n - 1
         for r in range(n):
-            out[r] = dt * dt * ((e + h) * c0[r, e] - c1[r, e]) + beta[k] * dt * c0[r, e]
+            out[r] = dt * dt * ((e + h) * c0[e, r] - c1[e, r]) + beta[k] * dt * c0[e, r]
     elif kind == 1:
         for r in range(n):
-            out[r] = dt * dt * ((k + h) * c0[r, k] - c1[r, k])
+            out[r] = dt * dt * ((k + h) * c0[k, r] - c1[k, r])
     else:
         sgn = -dt if kind == 2 else dt
         for r in range(n):
-            out[r] = sgn * c0[r, k]
+            out[r] = sgn * c0[k, r]
 
 
 @numba.njit(cache=True)
-def _skipped(c, skip, n_skip):
-    for q in range(n_skip):
-        if skip[q] >> 1 == c:
-            return True
-    return False
-
-
-@numba.njit(cache=True, inline="always")
-def _worse(d, c, side, worst, code, skip, n_skip):
-    """Keep violation ``d`` of constraint ``c`` (bound ``side``) if it is the worst so far."""
-    if d > worst and not _skipped(c, skip, n_skip):
-        return d, 2 * c + side
-    return worst, code
-
-
-@numba.njit(cache=True)
-def _scan(u, lo, up, n, dt, zoh, skip, n_skip, beta):
-    """Largest violation of the plan ``u`` (s = 0) and its code (2c + side); codes in skip ignored.
+def _scan(u, lo, up, n, dt, zoh, members, n_members, beta):
+    """Largest violation of the plan ``u`` (s = 0) and its code (2c + side); the constraints
+    of the working set (``members[:n_members]``, codes) ignored.
 
     Straight-line over the rows: the box and rate rows are two-sided, the gap, speed and
-    terminal rows one-sided (upper bounds only)."""
+    terminal rows one-sided (upper bounds only). Each row is compared in place (a helper
+    taking the array of skipped rows cost more than the scan's arithmetic)."""
+    skip = np.zeros(lo.shape[0], dtype=np.bool_)
+    for q in range(n_members):
+        skip[members[q] >> 1] = True
     worst = -np.inf
     code = -1
     dv = 0.0
@@ -460,37 +527,39 @@ def _scan(u, lo, up, n, dt, zoh, skip, n_skip, beta):
         z = u[k]
         dp += dt * dv + half * z
         dv += dt * z
-        worst, code = _worse(z - up[k], k, 1, worst, code, skip, n_skip)
-        worst, code = _worse(lo[k] - z, k, 0, worst, code, skip, n_skip)
+        if not skip[k]:
+            d = z - up[k]
+            if d > worst:
+                worst, code = d, 2 * k + 1
+            d = lo[k] - z
+            if d > worst:
+                worst, code = d, 2 * k
         c = r0 + k
-        worst, code = _worse(dp - up[c], c, 1, worst, code, skip, n_skip)
-        worst, code = _worse(-dv - up[c + n], c + n, 1, worst, code, skip, n_skip)
-        worst, code = _worse(dv - up[c + 2 * n], c + 2 * n, 1, worst, code, skip, n_skip)
+        d = dp - up[c]
+        if d > worst and not skip[c]:
+            worst, code = d, 2 * c + 1
+        d = -dv - up[c + n]
+        if d > worst and not skip[c + n]:
+            worst, code = d, 2 * (c + n) + 1
+        d = dv - up[c + 2 * n]
+        if d > worst and not skip[c + 2 * n]:
+            worst, code = d, 2 * (c + 2 * n) + 1
         if k < n - 1:
             c += 3 * n
             du = u[k + 1] - z
-            worst, code = _worse(du - up[c], c, 1, worst, code, skip, n_skip)
-            worst, code = _worse(lo[c] - du, c, 0, worst, code, skip, n_skip)
+            if not skip[c]:
+                d = du - up[c]
+                if d > worst:
+                    worst, code = d, 2 * c + 1
+                d = lo[c] - du
+                if d > worst:
+                    worst, code = d, 2 * c
     for j in range(2 * K_TERM):
         c = 5 * n + j
-        worst, code = _worse(dp + beta[j % K_TERM] * dv - up[c], c, 1, worst, code, skip, n_skip)
+        d = dp + beta[j % K_TERM] * dv - up[c]
+        if d > worst and not skip[c]:
+            worst, code = d, 2 * c + 1
     return worst, code
-
-
-@numba.njit(cache=True, inline="always")
-def _ndot(code, x, p0, p1, n, dt, zoh, beta):
-    """``n_a . x`` for the active constraint ``code`` written as ``n_a . u >= b_a``: the row
-    ``g_c`` on a lower bound, ``-g_c`` on an upper bound."""
-    kind, k = _kind(code >> 1, n)
-    d = _row_dot(kind, k, x, p0, p1, dt, zoh, beta)
-    return -d if (code & 1) else d
-
-
-@numba.njit(cache=True, inline="always")
-def _rhs(code, lo, up):
-    """``b_a`` of ``n_a . u >= b_a``: the lower bound, or minus the upper bound."""
-    c = code >> 1
-    return -up[c] if (code & 1) else lo[c]
 
 
 @numba.njit(cache=True)
@@ -586,8 +655,14 @@ def _join(m, code, d, spp, l, piv, lam_p, w, p0, p1, codes, lam, wbuf, p0buf, p1
 def _equality_optimum(u_unc, u_p0, u_p1, lo, up, codes, m, n, dt, zoh, beta, d, l, lbuf, lam):
     """``lam = S^-1 (b_A - N_A' u_unc)``: the multipliers of the plan that meets the working
     set's rows with equality (``u_p0``, ``u_p1``: the running sums of ``u_unc``)."""
+    h = 0.5 if zoh else 0.0
+    e = n - 1
+    eh = e + h
     for a in range(m):
-        d[a] = _rhs(codes[a], lo, up) - _ndot(codes[a], u_unc, u_p0, u_p1, n, dt, zoh, beta)
+        ca = codes[a]
+        kind, k, k1, kb = _at(ca, n)
+        g = _row_value(kind, k, eh, u_unc[k], u_unc[k1], u_p0[k], u_p1[k], u_p0[e], u_p1[e], beta[kb], dt, h)
+        d[a] = _bound(ca, lo[ca >> 1], up[ca >> 1]) - _signed(ca, g)
     _forward(lbuf, m, d, 0.0, l)
     _backward(lbuf, m, l, lam)
 
@@ -645,17 +720,25 @@ def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin,
     l = sf[8]
     r = sf[9]
     cap = wbuf.shape[0]
+    h = 0.5 if zoh else 0.0
+    e = n - 1
+    eh = e + h
     _prefix(u_unc, u_p0, u_p1)
     # --- 1. warm start
     m = 0
     for a in range(m0):
         code = codes[a]
-        if _kind(code >> 1, n)[0] == 5 or m >= cap or abs(_rhs(code, lo, up)) >= 0.5 * INF:
+        if _kind(code >> 1, n)[0] == 5 or m >= cap or abs(_bound(code, lo[code >> 1], up[code >> 1])) >= 0.5 * INF:
             continue  # the slack's bound, no room, or a row without that bound this step
         _load(code, hc, n, dt, zoh, beta, wbuf[m], p0buf[m], p1buf[m])
         for b in range(m):
-            d[b] = _ndot(codes[b], wbuf[m], p0buf[m], p1buf[m], n, dt, zoh, beta)
-        spp = _ndot(code, wbuf[m], p0buf[m], p1buf[m], n, dt, zoh, beta)
+            cb = codes[b]
+            kind, k, k1, kb = _at(cb, n)
+            d[b] = _signed(cb, _row_value(kind, k, eh, wbuf[m, k], wbuf[m, k1], p0buf[m, k], p1buf[m, k], p0buf[m, e],
+                                          p1buf[m, e], beta[kb], dt, h))
+        kind, k, k1, kb = _at(code, n)
+        spp = _signed(code, _row_value(kind, k, eh, wbuf[m, k], wbuf[m, k1], p0buf[m, k], p1buf[m, k], p0buf[m, e],
+                                       p1buf[m, e], beta[kb], dt, h))
         piv = _forward(lbuf, m, d, spp, l)
         if piv <= DEPENDENT * max(1.0, spp):
             continue  # its row depends on the members before it
@@ -696,15 +779,19 @@ def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin,
         if m >= cap:
             return False, m
         _load(code, hc, n, dt, zoh, beta, w, w0, w1)
-        spp = _ndot(code, w, w0, w1, n, dt, zoh, beta)
-        bp = _rhs(code, lo, up)
+        kind, k, k1, kb = _at(code, n)
+        spp = _signed(code, _row_value(kind, k, eh, w[k], w[k1], w0[k], w1[k], w0[e], w1[e], beta[kb], dt, h))
+        bp = _bound(code, lo[code >> 1], up[code >> 1])
+        p_kind, p_k, p_k1, p_kb = kind, k, k1, kb  # the violated row's indices (its distance below)
         lam_p = 0.0
         while True:
             steps += 1
             if steps > DUAL_STEPS_PER_INPUT * n + 16:
                 return False, m
             for b in range(m):
-                d[b] = _ndot(codes[b], w, w0, w1, n, dt, zoh, beta)
+                cb = codes[b]
+                kind, k, k1, kb = _at(cb, n)
+                d[b] = _signed(cb, _row_value(kind, k, eh, w[k], w[k1], w0[k], w1[k], w0[e], w1[e], beta[kb], dt, h))
             piv = _forward(lbuf, m, d, spp, l)
             _backward(lbuf, m, l, r)
             t1 = np.inf  # dual step: the first member whose multiplier would reach 0
@@ -715,7 +802,12 @@ def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin,
                     if t < t1:
                         t1, j = t, a
             dependent = piv <= DEPENDENT * max(1.0, spp)
-            t2 = np.inf if dependent else -(_ndot(code, out, u_p0, u_p1, n, dt, zoh, beta) - bp) / piv
+            if dependent:
+                t2 = np.inf
+            else:
+                dist = _signed(code, _row_value(p_kind, p_k, eh, out[p_k], out[p_k1], u_p0[p_k], u_p1[p_k], u_p0[e],
+                                                u_p1[e], beta[p_kb], dt, h))
+                t2 = -(dist - bp) / piv
             t = min(t1, t2)
             if t == np.inf:
                 return False, m  # infeasible without the slack
@@ -767,11 +859,13 @@ def _shift_active(codes, m, n):
 
 
 @numba.njit(cache=True)
-def _lead_term(cum, i, k, a_l, ks, a_part, n):
-    """``sum_j gain_lead[k, j] aseq_j`` from the running row sums ``cum[i, k, j] = sum_{j'<j} gain_lead[k, j']``."""
-    out = a_l * cum[i, k, ks]
+def _lead_term(c_ks, c_next, a_l, ks, a_part, n):
+    """``sum_j gain_lead[k, j] aseq_j`` from the running row sums ``cum[i, k, j] = sum_{j'<j}
+    gain_lead[k, j']`` at ``j = ks`` (``c_ks``) and ``j = ks + 1`` (``c_next``, read only if
+    ``ks < n``): scalars, as the kernel's per-row helpers take (see :func:`_at`)."""
+    out = a_l * c_ks
     if ks < n:
-        out += a_part * (cum[i, k, ks + 1] - cum[i, k, ks])
+        out += a_part * (c_next - c_ks)
     return out
 
 
@@ -884,7 +978,7 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
     if t_real >= 0:
         u0 = gain_f[i, 0, 0] * t0 + gain_f[i, 0, 1] * t1 + gain_f[i, 0, 2] * up
         if t_real == LEAD and a_l != 0.0:
-            u0 += _lead_term(gain_lead, i, 0, a_l, ks, a_part, n)
+            u0 += _lead_term(gain_lead[i, 0, ks], gain_lead[i, 0, min(ks + 1, n)], a_l, ks, a_part, n)
         # creeping towards a (nearly) stopped vehicle or a stop position, the driver deals
         # with it, not with its desired speed (the free-driving law, held back by the gap
         # constraint, would coast it to a stop short of the queue)
@@ -965,7 +1059,7 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         else:
             z = gain_f[i, k, 0] * th0 + gain_f[i, k, 1] * th1 + gain_f[i, k, 2] * up
             if target == LEAD and a_l != 0.0:
-                z += _lead_term(gain_lead, i, k, a_l, ks, a_part, n)
+                z += _lead_term(gain_lead[i, k, ks], gain_lead[i, k, min(ks + 1, n)], a_l, ks, a_part, n)
         u_unc[k] = z
     beta = P[i, C_BETA:C_BETA + K_TERM]
     viol = _fast_violation(P, S, i, v, u_unc, lower0, upper0, env_lo, env_hi, rate, gap[i], v_lead[i],
@@ -984,7 +1078,7 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         for k in range(n):
             z = gain_f[i, k, 0] * th0 + gain_f[i, k, 1] * th1 + gain_f[i, k, 2] * up
             if a_l != 0.0:
-                z += _lead_term(gain_lead, i, k, a_l, ks, a_part, n)
+                z += _lead_term(gain_lead[i, k, ks], gain_lead[i, k, min(ks + 1, n)], a_l, ks, a_part, n)
             u_unc[k] = z
         viol = _fast_violation(P, S, i, v, u_unc, lower0, upper0, env_lo, env_hi, rate, gap[i], v_lead[i],
                                stop_gap[i], aseq[i])
@@ -1092,7 +1186,7 @@ def _make_prepare(parallel):
     their inputs unread (output 0, path -1, nothing else written): rows do not interact, so the others' numbers
     are the same with or without them. Arrays (``n`` drivers, ``N`` steps, ``M``
     bounds): ``G`` (n, 2, N, 3) follow/cruise gains; ``GL`` lead-acceleration gain sums;
-    ``H`` (n, 2, 2, N, N) follow/cruise H^-1 column sums; ``B`` (n, 2, M) lower/upper
+    ``H`` (n, 2, 2, N, N) follow/cruise H^-1 column sums by column (``CondensedQP.hinv_columns``); ``B`` (n, 2, M) lower/upper
     bounds; ``PA`` (n, 2, N) plan and predicted lead accelerations; ``W`` (n, N_WORK);
     ``I`` (n, I_CODES + MAX_ACTIVE) int state; ``SF``/``SC`` per-thread scratch.
     """

@@ -412,7 +412,7 @@ class MPCDriver:
         # unconstrained laws: follow (theta = e_x, e_v, u_prev), cruise (e_v, u_prev)
         self._gain_f = np.ascontiguousarray(np.stack([q.gain for q in self._qp_follow]))
         self._gain_c = np.ascontiguousarray(np.stack([q.gain[:, 1:] for q in self._qp_cruise]))
-        self._H = np.ascontiguousarray(np.stack([np.stack([f.hinv_sums, c.hinv_sums])
+        self._H = np.ascontiguousarray(np.stack([np.stack([f.hinv_columns, c.hinv_columns])
                                                  for f, c in zip(self._qp_follow, self._qp_cruise)]))
         # running row sums of the lead-acceleration gains (the predicted sequence is piecewise constant)
         self._GL = (np.ascontiguousarray(np.stack([q.gain_lead_sums for q in self._qp_follow]))
@@ -611,7 +611,7 @@ class MPCDriver:
         qc = self._cruise_qp(*self._config(i))
         self._qp_follow[i], self._qp_cruise[i] = None, qc
         self._gain_c[i] = qc.gain[:, 1:]
-        self._H[i, 1] = qc.hinv_sums
+        self._H[i, 1] = qc.hinv_columns
         if self._backends:
             for key in [k for k in self._backends if k[0] == i]:
                 del self._backends[key]
@@ -623,7 +623,7 @@ class MPCDriver:
         qf = self._follow_qp(*self._config(i))
         self._qp_follow[i] = qf
         self._gain_f[i] = qf.gain
-        self._H[i, 0] = qf.hinv_sums
+        self._H[i, 0] = qf.hinv_columns
         if self.settings.use_lead_accel:
             self._GL[i] = qf.gain_lead_sums
         self._I[i, K.I_FOLLOW_PENDING] = 0
@@ -735,10 +735,11 @@ class MPCDriver:
         if self.perception is not None:
             # what the drivers see; one whose true scene is an emergency (braking at its a_min
             # cannot keep x_min) sees it as it is: the reflex that the reaction time does not delay
-            true = np.stack(arrays[:5])
-            seen = self.perception.perceive(true)
+            seen = self.perception.perceive_fields(*arrays[:5])
             alarm = K.alarmed(self._P, arrays[0], arrays[2], arrays[3], arrays[4], self._alarm)
-            seen[:, alarm] = true[:, alarm]
+            if alarm.any():
+                for f in range(5):
+                    seen[f, alarm] = arrays[f][alarm]
             arrays = [seen[0], seen[1], seen[2], seen[3], seen[4], arrays[5]]
         W = self._W
         n_hard = self._prepare(self._P, self._S, *arrays, self._gain_f, self._gain_c, self._GL, self._H, self._B,
@@ -794,37 +795,15 @@ class MPCDriver:
         which rolls ``b^3 / (24 jerk_max^2)`` further than the constant braking the stop
         needs (0.10 m for ``a_min = -2.5``, ``jerk_max = 2.5``): a real car's deceleration
         drops to 0 as it stops (the driver's own final stop does so, see the HOLD path), so
-        this release distance is added to the tolerance. Neither is an emergency."""
+        this release distance is added to the tolerance. Neither is an emergency. (Compiled:
+        :func:`acc_gym.drivers._mpc_kernel.only_chords_short`.)"""
         N = self.horizon.n_steps
-        b, jerk = -self._P[i, K.A_MIN], self._P[i, K.JERK]
         tol = self.settings.brake_slack_tol + K.release_distance(self._P, i)
-        z = np.append(u, 0.0)  # no slack: its own bound [0, inf) holds
-        # (z, every general row but the 2 K_TERM terminal chords): the first 5N bounds (layout in
-        # acc_gym.drivers.qp)
-        values = np.concatenate([z, self.horizon.general_rows @ z])
-        lo, hi = self._lower[i, :5 * N], self._upper[i, :5 * N]
-        if np.any(values < lo - tol) or np.any(values > hi + tol):
-            return False
         tv, tp = self.horizon.matrices
-        v, gap, v_lead, stop_gap = (float(arrays[j][i]) for j in (0, 2, 3, 5))
-        x_min = self._P[i, K.X_MIN]
-        tn = N * self.settings.dt
-        dp, dv = float(tp[-1] @ u), float(tv[-1] @ u)
-        v_n = v + dv
-
-        def stopping(w):
-            w = max(w, 0.0)
-            return w * w / (2.0 * b) + w * b / (2.0 * jerk)
-
-        if np.isfinite(gap):
-            aseq = self._aseq[i]
-            dpl, dvl = float(tp[-1] @ aseq), float(tv[-1] @ aseq)
-            room = gap + tn * v_lead + dpl - tn * v - dp - x_min
-            if room < stopping(v_n - (v_lead + dvl)) - tol:
-                return False
-        if np.isfinite(stop_gap) and stop_gap - tn * v - dp < stopping(v_n) - tol:
-            return False
-        return True
+        return K.only_chords_short(self._P, i, u, self.horizon.general_rows, self._lower[i, :5 * N],
+                                   self._upper[i, :5 * N], tol, tp[-1], tv[-1], self._aseq[i], float(arrays[0][i]),
+                                   float(arrays[2][i]), float(arrays[3][i]), float(arrays[5][i]),
+                                   N * self.settings.dt)
 
     def _solve_one(self, i: int, arrays) -> None:
         """Backend solve for driver ``i``, with mode escalation on slack and a counted fallback."""

@@ -56,7 +56,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from acc_gym.drivers.base import DelayBuffer, delay_steps
+from acc_gym.drivers._perception_kernel import perceive as _perceive
+from acc_gym.drivers.base import delay_steps
 
 _BLOCK = 256  # steps of standard normals drawn at once per group
 
@@ -108,15 +109,15 @@ class Perception:
             if not isinstance(rng, np.random.Generator):
                 raise TypeError(f"Perception: each group needs a numpy.random.Generator, got {type(rng).__name__}")
         self.k = delay_steps(params.reaction_time, self.dt)
-        self._delay = DelayBuffer(self.k)
         self._f = math.exp(-self.dt / params.correlation_time)
         self._g = math.sqrt(1.0 - self._f * self._f)
         self.reset()
 
     def reset(self) -> None:
         """Forget the scene's history; the error processes restart from their stationary draw."""
-        self._delay.reset()
-        self._v_prev, self._odo = None, None
+        self._push = 0  # scenes seen since the start (0: the next fills the delay's ring)
+        self._hist = np.empty((self.k + 1, 4, self.n))  # the ring of the scenes ahead: gap, v_lead, a_lead, odometer
+        self._v_prev, self._odo = np.zeros(self.n), np.zeros(self.n)  # [m/s] the speed a step ago, [m] driven
         self._noise = [np.empty((0, 2, c)) for _, c in self.groups]
         self._at = [0] * len(self.groups)
         self._w = (np.concatenate([self._draw(j) for j in range(len(self.groups))], axis=1) if self.groups
@@ -133,23 +134,24 @@ class Perception:
         return out
 
     def perceive(self, rows: np.ndarray) -> np.ndarray:
+        """The perceived rows (a new array) of the true rows ``(>= 5, n)`` (``v, a, gap, v_lead,
+        a_lead``, then any others, passed through)."""
+        rows = np.asarray(rows, dtype=float)
+        out = self.perceive_fields(rows[0], rows[1], rows[2], rows[3], rows[4])
+        if rows.shape[0] > 5:
+            out = np.concatenate([out, rows[5:]])
+        return out
+
+    def perceive_fields(self, v, a, gap, v_lead, a_lead) -> np.ndarray:
+        """The perceived ``(v, a, gap, v_lead, a_lead)`` ``(5, n)`` (a new array) of the true
+        fields, each a float64 array ``(n,)``: one step of the scene
+        (:func:`acc_gym.drivers._perception_kernel.perceive`)."""
         p = self.params
-        v, a, gap, v_lead, a_lead = rows[0], rows[1], rows[2], rows[3], rows[4]
-        # the odometer: the distance driven, exact for the step's constant acceleration
-        self._odo = np.zeros_like(v) if self._v_prev is None else self._odo + 0.5 * (self._v_prev + v) * self.dt
-        self._v_prev = np.array(v, dtype=float, copy=True)
-        gap_d, v_lead_d, a_lead_d, odo_d = self._delay.push(np.stack([gap, v_lead, a_lead, self._odo]))
         if self.groups:
             xi = np.concatenate([self._draw(j) for j in range(len(self.groups))], axis=1)
             self._w = self._f * self._w + self._g * xi
-        seen = np.isfinite(gap) & np.isfinite(gap_d)
-        with np.errstate(invalid="ignore"):
-            tau = self.k * self.dt
-            s = gap_d + tau * v_lead_d - (self._odo - odo_d)
-            s_est = np.maximum(s * np.exp(p.gap_error * self._w[0]), 0.0)
-            v_lead_est = v_lead_d - p.rate_error * np.maximum(s, 0.0) * self._w[1]
-        out = np.array(rows, dtype=float, copy=True)
-        out[2] = np.where(seen, s_est, gap)
-        out[3] = np.where(seen, np.maximum(v_lead_est, 0.0), v_lead)
-        out[4] = np.where(seen, a_lead_d, a_lead)
+        out = np.empty((5, self.n))
+        _perceive(v, a, gap, v_lead, a_lead, self._hist, self._push, self._v_prev, self._odo, self._w, self.k,
+                  self.dt, float(p.gap_error), float(p.rate_error), out)
+        self._push += 1
         return out

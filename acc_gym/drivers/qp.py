@@ -517,6 +517,18 @@ class CondensedQP:
         return self._gain_lead_sums
 
     @property
+    def hinv_columns(self) -> np.ndarray:
+        """``(2, N, N)``: :attr:`hinv_sums` laid out as the driver kernel reads it, each running
+        column sum contiguous (``hinv_columns[s][k, :] = hinv_sums[s][:, k]``: a constraint row's
+        ``H^-1 g`` then reads 2 N consecutive numbers instead of a strided column, which missed the
+        cache on every number). Made on first use and kept (the QP is immutable and shared)."""
+        if "_hinv_columns" not in self.__dict__:
+            cols = np.ascontiguousarray(self.hinv_sums.transpose(0, 2, 1))
+            cols.setflags(write=False)
+            self._hinv_columns = cols
+        return self._hinv_columns
+
+    @property
     def key(self) -> tuple:
         return (self.q1, self.q2, self.r1, self.c_tg, self.horizon, self.slack_linear,
                 float(self.hessian[-1, -1]), self.r_jerk)

@@ -55,6 +55,8 @@ from acc_gym._validation import check_finite
 from acc_gym.drivers.base import Observation
 from acc_gym.drivers.mpc import MODEL_VERSION
 from acc_gym.drivers.population import KINDS
+from acc_gym.simulation._ring_kernel import gaps as _gaps
+from acc_gym.simulation._ring_kernel import snapshot
 from acc_gym.simulation._world_kernel import advance
 from acc_gym.vehicle import VehicleParams
 
@@ -129,10 +131,13 @@ class RingTrace:
 
 def ring_gaps(s: np.ndarray, lengths: np.ndarray, length: float) -> np.ndarray:
     """Gaps [m] from unwrapped positions ``s`` ``(..., N)``: vehicle ``i``'s leader is ``i - 1``,
-    the first vehicle's the last, one lap ahead."""
-    lead = np.roll(s, 1, axis=-1)
-    lead[..., 0] += length
-    return lead - s - np.roll(lengths, 1)
+    the first vehicle's the last, one lap ahead (:func:`acc_gym.simulation._ring_kernel.gap_to_leader`)."""
+    s = np.asarray(s, dtype=float)
+    flat = np.ascontiguousarray(s.reshape(-1, s.shape[-1]))
+    out = np.empty_like(flat)
+    _gaps(flat, np.ascontiguousarray(np.broadcast_to(np.asarray(lengths, dtype=float), (s.shape[-1],))),
+          float(length), out)
+    return out.reshape(s.shape)
 
 
 def _seeds(seeds) -> tuple[int, ...]:
@@ -385,7 +390,9 @@ class RingWorld:
         if self._fields is None:
             if self.s is None:
                 raise RuntimeError("call reset() before stepping a RingWorld")
-            self._fields = (self.v, self.a, self.gaps(), np.roll(self.v, 1, axis=1), np.roll(self.a, 1, axis=1))
+            ahead = np.empty((3, self.rings, self.vehicles))  # fresh: a caller may keep the snapshot
+            snapshot(self.s, self.v, self.a, self.lengths, float(self.length), ahead, self._hb, self._hj, self._rows)
+            self._fields = (self.v, self.a, ahead[0], ahead[1], ahead[2])
         return self._fields
 
     def step(self, a_controlled=None, out=None) -> None:
@@ -396,9 +403,7 @@ class RingWorld:
         R, N, L, dt, k = self.rings, self.vehicles, self.length, self.dt, self.k
         fields = self.fields()
         s, v, a, a_des = self.s, self.v, self.a, self._a_des
-        if self.mpc is not None:
-            for f in range(5):
-                self._rows[f] = fields[f][self._hb, self._hj]
+        if self.mpc is not None:  # their rows of the snapshot: self._rows, written by fields()
             a_des[self._hb, self._hj] = self.mpc.act_rows(self._rows)
         if self.groups:
             # the second vehicle ahead (ACC's Eq. (3)): two places back in the order, the first two

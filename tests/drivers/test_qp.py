@@ -242,7 +242,7 @@ def _kernel_solve(qp, data, codes):
     out = np.zeros(n)
     u_unc = -qp.hinv @ data["q"][:n]
     h = qp.horizon
-    ok, m = K._active_set_solve(u_unc, qp.hinv_sums, data["lower"], data["upper"], work, len(codes), n, h.dt,
+    ok, m = K._active_set_solve(u_unc, qp.hinv_columns, data["lower"], data["upper"], work, len(codes), n, h.dt,
                                 h.discretisation == "zoh", 1e-7, 1e9, data["beta"], out, sf, sw[0], sw[1], sw[2], ss[0],
                                 ss[1])
     return ok, out, work[:m].copy()

@@ -202,3 +202,18 @@ def test_riccati_terminal_is_a_dare_fixed_point_for_cruise_and_euler(q1, q2, r1,
         assert radius.max() < 1.0
     else:
         assert abs((a - b @ gain)[1, 1]) < 1.0  # the e_v loop alone
+
+
+def test_the_kernels_layout_of_the_hinv_sums_holds_each_running_column_sum_contiguously():
+    # the working-set solver reads H^-1 g of a row from hinv_columns[s][k, :]: the running sum of
+    # H^-1's columns up to k (plain and index-weighted), as direct() builds them by column
+    h = Horizon()
+    q1, q2, r1, c, rj = CASES[1]
+    qp = CondensedQP(q1, q2, r1, c, h, r_jerk=rj)
+    ref = direct(q1, q2, r1, c, h, rj)["hinv_sums"]
+    cols = qp.hinv_columns
+    assert cols.shape == (2, h.n_steps, h.n_steps) and cols.flags.c_contiguous and not cols.flags.writeable
+    for k in (0, 1, 30, h.n_steps - 1):
+        close(cols[0][k], ref[0][:, k], f"plain sum to column {k}", rtol=1e-9)
+        close(cols[1][k], ref[1][:, k], f"index-weighted sum to column {k}", rtol=1e-9)
+    assert qp.hinv_columns is cols  # made once
