@@ -1132,7 +1132,7 @@ def _make_prepare(parallel):
         # few arguments on purpose: numba's dispatch costs ~0.1 us per argument
         err = _check_inputs(v0, u_prev, gap, v_lead, a_lead, stop_gap, I[:, I_IDLE])
         if err != 0:
-            return -err
+            return BAD_INPUT, err
         nd = v0.shape[0]
         # a driver's follow QP is installed at its first step with a real target (MPCDriver's
         # lazy install): list the rows that need it now and return before writing anything
@@ -1142,7 +1142,7 @@ def _make_prepare(parallel):
                 I[n_need, I_HARD] = i
                 n_need += 1
         if n_need > 0:
-            return -NEED_FOLLOW - n_need
+            return NEED_FOLLOW, n_need
         n = PA.shape[2]
         width = max(n, MAX_ACTIVE + 1)
         o1 = N_SF * width
@@ -1173,21 +1173,22 @@ def _make_prepare(parallel):
             if W[i, W_PATH] == QP:
                 I[n_hard, I_HARD] = i
                 n_hard += 1
-        return n_hard
+        return SOLVED, n_hard
 
     prepare.__doc__ = """One step for every driver.
 
-    Returns ``-code`` for invalid inputs (nothing written); ``-NEED_FOLLOW - k`` when ``k``
-    drivers flagged in ``I[:, I_FOLLOW_PENDING]`` have a real target (a vehicle ahead or a
-    stop position) this step, their indices in ``I[:, I_HARD]`` and nothing else written: the
-    caller installs their follow QPs and calls again; else the number of drivers
-    whose QP the warm active-set solver could not settle (their indices in ``I[:, I_HARD]``):
-    the caller solves those with the backend. Rows flagged in ``I[:, I_IDLE]`` are skipped,
+    Returns ``(status, k)``: ``(BAD_INPUT, field)`` for invalid inputs (``field``: 1 + the
+    offending field's index, :func:`_check_inputs`; nothing written); ``(NEED_FOLLOW, k)`` when
+    ``k`` drivers flagged in ``I[:, I_FOLLOW_PENDING]`` have a real target (a vehicle ahead or
+    a stop position) this step, their indices in ``I[:, I_HARD]`` and nothing else written:
+    the caller installs their follow QPs and calls again; else ``(SOLVED, k)``, ``k`` the
+    number of drivers whose QP the warm active-set solver could not settle (their indices in
+    ``I[:, I_HARD]``): the caller solves those with the backend. Rows flagged in ``I[:, I_IDLE]`` are skipped,
     their inputs unread (output 0, path -1, nothing else written): rows do not interact, so the others' numbers
     are the same with or without them. Arrays (``n`` drivers, ``N`` steps, ``M``
     bounds): ``G`` (n, 2, N, 3) follow/cruise gains; ``GL`` lead-acceleration gain sums;
-    ``H`` (n, 2, 2, N, N) follow/cruise H^-1 column sums by column (``CondensedQP.hinv_columns``); ``B`` (n, 2, M) lower/upper
-    bounds; ``PA`` (n, 2, N) plan and predicted lead accelerations; ``W`` (n, N_WORK);
+    ``H`` (n, 2, 2, N, N) follow/cruise H^-1 column sums by column
+    (``CondensedQP.hinv_columns``); ``B`` (n, 2, M) lower/upper bounds; ``PA`` (n, 2, N) plan and predicted lead accelerations; ``W`` (n, N_WORK);
     ``I`` (n, I_CODES + MAX_ACTIVE) int state; ``SF``/``SC`` per-thread scratch.
     """
     return prepare
@@ -1202,7 +1203,10 @@ I_STATS = 3
 I_IDLE = I_STATS + N_STATS  # 1: the row has no driver this step (skipped: output 0, path -1, no statistics)
 I_FOLLOW_PENDING = I_IDLE + 1  # 1: the row's follow QP (gains, H^-1 sums) is not installed yet
 I_CODES = I_FOLLOW_PENDING + 1
-NEED_FOLLOW = 1000  # prepare returns -NEED_FOLLOW - k: k pending rows need their follow QP (> every input code)
+# prepare's statuses (its first return value; the second is a count or a field, see prepare)
+SOLVED = 0  # the step is done but for k drivers the backend must solve
+BAD_INPUT = 1  # an input field is invalid (the second value: 1 + its index); nothing written
+NEED_FOLLOW = 2  # k pending drivers need their follow QP first; nothing else written
 
 
 def scratch(n_steps: int, parallel: bool):

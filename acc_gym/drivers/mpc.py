@@ -742,16 +742,16 @@ class MPCDriver:
                     seen[f, alarm] = arrays[f][alarm]
             arrays = [seen[0], seen[1], seen[2], seen[3], seen[4], arrays[5]]
         W = self._W
-        n_hard = self._prepare(self._P, self._S, *arrays, self._gain_f, self._gain_c, self._GL, self._H, self._B,
-                               self._PA, W, self._I, self._SF, self._SC)
-        if n_hard <= -K.NEED_FOLLOW:  # drivers meeting their first real target: their follow QPs, then the step
-            for i in self._hard[:-n_hard - K.NEED_FOLLOW].tolist():
+        status, n_hard = self._prepare(self._P, self._S, *arrays, self._gain_f, self._gain_c, self._GL, self._H,
+                                       self._B, self._PA, W, self._I, self._SF, self._SC)
+        if status == K.NEED_FOLLOW:  # drivers meeting their first real target: their follow QPs, then the step
+            for i in self._hard[:n_hard].tolist():
                 self._install_follow(i)
-            n_hard = self._prepare(self._P, self._S, *arrays, self._gain_f, self._gain_c, self._GL, self._H, self._B,
-                                   self._PA, W, self._I, self._SF, self._SC)
-        if n_hard < 0:
-            name = _FIELDS[-n_hard - 1]
-            raise ValueError(f"observation.{name} is invalid for an MPC driver: {arrays[-n_hard - 1]!r} "
+            status, n_hard = self._prepare(self._P, self._S, *arrays, self._gain_f, self._gain_c, self._GL, self._H,
+                                           self._B, self._PA, W, self._I, self._SF, self._SC)
+        if status == K.BAD_INPUT:
+            name = _FIELDS[n_hard - 1]
+            raise ValueError(f"observation.{name} is invalid for an MPC driver: {arrays[n_hard - 1]!r} "
                              f"(speeds must be finite and >= 0, accelerations finite, gaps not NaN or -inf)")
         self._u_prev = arrays[1]
         self._last_arrays = arrays
