@@ -69,13 +69,21 @@ def make_reward(reward_fn, config: EnvConfig):
 
 
 def action_to_accel(action: np.ndarray, config: EnvConfig) -> np.ndarray:
-    """Actions in [-1, 1] (clipped) to desired accelerations [m/s^2]: ``+1 -> accel_max``, ``-1 -> -decel_max``
-    (:func:`acc_gym.envs._kernel.accel_of_action` of each, compiled), as float64 of the actions' shape."""
-    a = np.asarray(action, dtype=float)
-    flat = a if a.ndim == 1 else a.reshape(-1)
+    """Actions in [-1, 1] (clipped) to desired accelerations [m/s^2] with ``config``'s scaling
+    (:func:`actions_to_accel`)."""
+    return actions_to_accel(action, config.accel_max, config.decel_max)
+
+
+def actions_to_accel(actions, accel_max: float, decel_max: float) -> np.ndarray:
+    """Actions in [-1, 1] (clipped) to desired accelerations [m/s^2]: ``+1 -> accel_max``,
+    ``-1 -> -decel_max`` (:func:`acc_gym.envs._kernel.accel_of_action` of each, compiled), as
+    float64 of the actions' shape. The one mapping of every env id, the ring and the
+    OpenSCENARIO runner."""
+    a = np.asarray(actions, dtype=float)
+    flat = np.ascontiguousarray(a.reshape(-1))
     out = np.empty(flat.shape[0])
-    _K.action_to_accel(flat, float(config.accel_max), float(config.decel_max), out)
-    return out if a.ndim == 1 else out.reshape(a.shape)
+    _K.action_to_accel(flat, float(accel_max), float(decel_max), out)
+    return out.reshape(a.shape)
 
 
 def build_named(generator, config: EnvConfig, scenario_id: str, seed: int) -> Scenario:

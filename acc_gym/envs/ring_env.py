@@ -9,10 +9,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from acc_gym.envs.acc_env import V_MAX, check_actions, observation_space
+from acc_gym.envs.acc_env import V_MAX, actions_to_accel, check_actions, observation_space
 from acc_gym.envs.config import EnvConfig
-from acc_gym.simulation.ring import (SUGIYAMA_SPEED, RingSensors, RingTrace, RingWorld, actions_to_accel,
-                                     ring_layout)
+from acc_gym.simulation.ring import SUGIYAMA_SPEED, RingSensors, RingTrace, RingWorld, ring_layout
 
 DRIVER_MODEL = 6  # the human drivers' model version (acc_gym.drivers.mpc.DRIVER_MODELS): with human perception
 VEHICLES = 22  # the ego and 21 human-like drivers (Sugiyama's and Flow's 22, Stern's one among 21)

@@ -193,16 +193,6 @@ class RingSensors:
                                                                   self.sensor_range).astype(np.float32)
 
 
-def actions_to_accel(actions: np.ndarray, accel_max: float, decel_max: float) -> np.ndarray:
-    """Actions in [-1, 1] (clipped; float64) to desired accelerations [m/s^2] as the environments
-    scale them (the compiled :func:`acc_gym.envs._kernel.action_to_accel`)."""
-    from acc_gym.envs import _kernel as K
-
-    acc = np.empty(len(actions))
-    K.action_to_accel(np.asarray(actions, dtype=float), float(accel_max), float(decel_max), acc)
-    return acc
-
-
 class _Controllers:
     """The controller under test at the controlled cells of a batch of rings: ``actors(cells)``
     (the string-stability measurement's adapter, :class:`~acc_gym.evaluation.string_stability._Copies`
@@ -239,6 +229,8 @@ class _Controllers:
             e = self.errors[int(np.flatnonzero(self.failed)[0])]
             raise ValueError(f"the controller failed in {e.row} at vehicle {e.vehicle - 1}, t = {e.time_s:g} s: "
                              f"{e.message}")
+        from acc_gym.envs.acc_env import actions_to_accel
+
         acc = actions_to_accel(act, self.accel_max, self.decel_max)
         if self.actuators is not None:  # from what the vehicles realised over the last step
             acc = self.actuators.command(acc, fields[1][self.cells[:, 0], self.cells[:, 1]])

@@ -84,7 +84,8 @@ def run_file(path, controller, *, parameters: dict | None = None, ego: str | Non
     storyboard's longitudinal actions on it are listed in ``ignored`` (its lateral ones still move
     it). Pedestrians, objects and vehicles standing at the start keep their scripted motion."""
     from acc_gym.envs.acc_env import check_actions
-    from acc_gym.simulation.ring import RingSensors, actions_to_accel
+    from acc_gym.envs.acc_env import actions_to_accel
+    from acc_gym.simulation.ring import RingSensors
     from acc_gym.vehicle import VehicleParams, VehicleState, step as vehicle_step
 
     if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
