@@ -73,26 +73,31 @@ def release_distance(P, i):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def only_chords_short(P, i, u, G, lower, upper, tol, tp_n, tv_n, aseq, v, gap, v_lead, stop_gap, tn):
+def only_chords_short(P, S, i, u, G, bounds, ends, aseq, v, gap, v_lead, stop_gap):
     """Whether driver ``i``'s plan ``u`` ``(N,)`` (no slack) keeps every bound row but the
     terminal chords (``(u, 0)``, then ``G (u, 0)``: ``G`` the general rows but the chords,
-    ``lower``/``upper`` the driver's first ``5 N`` bounds) within ``tol`` [m, m/s, m/s^2], and
-    the exact terminal condition: from the plan's end (``tp_n``/``tv_n``: the last rows of the
-    position and speed prediction matrices, ``tn`` the horizon [s]), braking at ``a_min``
-    (reached at ``jerk_max``) stops clear of the vehicle ahead (``gap``, ``v_lead``, its
-    predicted accelerations ``aseq``) and of the stop position ``stop_gap``, within ``tol``
-    (:meth:`acc_gym.drivers.mpc.MPCDriver._only_chords_short` says why)."""
+    ``bounds`` ``(2, >= 5 N)`` the driver's lower and upper bounds) within the braking plan's
+    tolerance (``S[S_BRAKE_TOL]`` plus :func:`release_distance`), and the exact terminal
+    condition: from the plan's end (``ends``: the last rows of the position and speed prediction
+    matrices), braking at ``a_min`` (reached at ``jerk_max``) stops clear of the vehicle ahead
+    (``gap``, ``v_lead``, its predicted accelerations ``aseq``) and of the stop position
+    ``stop_gap``, within that tolerance (:meth:`acc_gym.drivers.mpc.MPCDriver._only_chords_short`
+    says why)."""
     n = u.shape[0]
+    tol = S[S_BRAKE_TOL] + release_distance(P, i)
+    tn = n * S[S_DT]
+    tp_n = ends[0]
+    tv_n = ends[1]
     for k in range(n):
-        if u[k] < lower[k] - tol or u[k] > upper[k] + tol:
+        if u[k] < bounds[0, k] - tol or u[k] > bounds[1, k] + tol:
             return False
-    if 0.0 < lower[n] - tol or 0.0 > upper[n] + tol:  # the slack, 0
+    if 0.0 < bounds[0, n] - tol or 0.0 > bounds[1, n] + tol:  # the slack, 0
         return False
     for r in range(G.shape[0]):
         acc = 0.0
         for k in range(n):
             acc += G[r, k] * u[k]
-        if acc < lower[n + 1 + r] - tol or acc > upper[n + 1 + r] + tol:
+        if acc < bounds[0, n + 1 + r] - tol or acc > bounds[1, n + 1 + r] + tol:
             return False
     b, jerk = -P[i, A_MIN], P[i, JERK]
     x_min = P[i, X_MIN]

@@ -11,14 +11,18 @@ import numba
 
 
 @numba.njit(cache=True, error_model="numpy")
-def perceive(v, a, gap, v_lead, a_lead, hist, push, v_prev, odo, w, k, dt, gap_error, rate_error, out):
+def perceive(v, a, gap, v_lead, a_lead, hist, push, motion, w, params, out):
     """Write the perceived ``(v, a, gap, v_lead, a_lead)`` of ``n`` drivers into ``out[:5]``.
 
     ``hist`` ``(k + 1, 4, n)``: the ring of the scenes ahead (gap, v_lead, a_lead, odometer),
     ``push`` the number of scenes pushed so far (0: the run's first, which fills the ring, as
-    the scene before the first ``k`` steps is the start's); ``v_prev`` and ``odo`` [m/s, m]
-    the own speed of the step before and the distance driven, updated in place; ``w`` ``(2,
-    n)`` the error processes now; ``k`` the delay [steps], ``dt`` [s]."""
+    the scene before the first ``k`` steps is the start's); ``motion`` ``(2, n)``: the own
+    speed of the step before [m/s] and the distance driven [m], updated in place; ``w`` ``(2,
+    n)`` the error processes now; ``params``: the delay ``k`` [steps], ``dt`` [s], the gap's
+    relative error and the approach rate's error [1/s]."""
+    k, dt, gap_error, rate_error = int(params[0]), params[1], params[2], params[3]
+    v_prev = motion[0]
+    odo = motion[1]
     n = v.shape[0]
     d1 = hist.shape[0]
     slot = push % d1

@@ -797,13 +797,9 @@ class MPCDriver:
         drops to 0 as it stops (the driver's own final stop does so, see the HOLD path), so
         this release distance is added to the tolerance. Neither is an emergency. (Compiled:
         :func:`acc_gym.drivers._mpc_kernel.only_chords_short`.)"""
-        N = self.horizon.n_steps
-        tol = self.settings.brake_slack_tol + K.release_distance(self._P, i)
-        tv, tp = self.horizon.matrices
-        return K.only_chords_short(self._P, i, u, self.horizon.general_rows, self._lower[i, :5 * N],
-                                   self._upper[i, :5 * N], tol, tp[-1], tv[-1], self._aseq[i], float(arrays[0][i]),
-                                   float(arrays[2][i]), float(arrays[3][i]), float(arrays[5][i]),
-                                   N * self.settings.dt)
+        return K.only_chords_short(self._P, self._S, i, u, self.horizon.general_rows, self._B[i],
+                                   self.horizon.terminal_rows, self._aseq[i], float(arrays[0][i]),
+                                   float(arrays[2][i]), float(arrays[3][i]), float(arrays[5][i]))
 
     def _solve_one(self, i: int, arrays) -> None:
         """Backend solve for driver ``i``, with mode escalation on slack and a counted fallback."""

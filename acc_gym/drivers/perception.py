@@ -109,6 +109,8 @@ class Perception:
             if not isinstance(rng, np.random.Generator):
                 raise TypeError(f"Perception: each group needs a numpy.random.Generator, got {type(rng).__name__}")
         self.k = delay_steps(params.reaction_time, self.dt)
+        # the kernel's parameters: delay [steps], dt [s], the errors' scales
+        self._params = np.array([self.k, self.dt, float(params.gap_error), float(params.rate_error)])
         self._f = math.exp(-self.dt / params.correlation_time)
         self._g = math.sqrt(1.0 - self._f * self._f)
         self.reset()
@@ -117,7 +119,7 @@ class Perception:
         """Forget the scene's history; the error processes restart from their stationary draw."""
         self._push = 0  # scenes seen since the start (0: the next fills the delay's ring)
         self._hist = np.empty((self.k + 1, 4, self.n))  # the ring of the scenes ahead: gap, v_lead, a_lead, odometer
-        self._v_prev, self._odo = np.zeros(self.n), np.zeros(self.n)  # [m/s] the speed a step ago, [m] driven
+        self._motion = np.zeros((2, self.n))  # [m/s] the speed a step ago, [m] the distance driven
         self._noise = [np.empty((0, 2, c)) for _, c in self.groups]
         self._at = [0] * len(self.groups)
         self._w = (np.concatenate([self._draw(j) for j in range(len(self.groups))], axis=1) if self.groups
@@ -146,12 +148,10 @@ class Perception:
         """The perceived ``(v, a, gap, v_lead, a_lead)`` ``(5, n)`` (a new array) of the true
         fields, each a float64 array ``(n,)``: one step of the scene
         (:func:`acc_gym.drivers._perception_kernel.perceive`)."""
-        p = self.params
         if self.groups:
             xi = np.concatenate([self._draw(j) for j in range(len(self.groups))], axis=1)
             self._w = self._f * self._w + self._g * xi
         out = np.empty((5, self.n))
-        _perceive(v, a, gap, v_lead, a_lead, self._hist, self._push, self._v_prev, self._odo, self._w, self.k,
-                  self.dt, float(p.gap_error), float(p.rate_error), out)
+        _perceive(v, a, gap, v_lead, a_lead, self._hist, self._push, self._motion, self._w, self._params, out)
         self._push += 1
         return out

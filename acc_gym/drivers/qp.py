@@ -111,6 +111,12 @@ class Horizon:
         columns ``(u, s)``: the same for every driver (read-only, cached)."""
         return _constraint_matrix(self)
 
+    @property
+    def terminal_rows(self) -> np.ndarray:
+        """``(2, N)``: the last rows of the position and speed prediction matrices (the plan's
+        end: position and speed change per input), read-only, cached."""
+        return _terminal_rows(self)
+
     def constraint_matrix(self, beta: np.ndarray) -> np.ndarray:
         """General rows ``G`` ``(n_rows, N+1)``, columns ``(u, s)``, for chord slopes ``beta`` ``(K_TERM,)``."""
         n = self.n_steps
@@ -129,6 +135,14 @@ def _horizon_matrices(h: Horizon) -> tuple[np.ndarray, np.ndarray]:
     tv.setflags(write=False)
     tp.setflags(write=False)
     return tv, tp
+
+
+@lru_cache(maxsize=16)
+def _terminal_rows(h: Horizon) -> np.ndarray:
+    tv, tp = h.matrices
+    rows = np.ascontiguousarray(np.stack([tp[-1], tv[-1]]))
+    rows.setflags(write=False)
+    return rows
 
 
 K_TERM = 4  # chords of the terminal stoppability condition, per real target
