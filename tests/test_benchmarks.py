@@ -375,3 +375,15 @@ def test_rl_curves_candidates_reads_every_per_seed_form_and_counts_by_hand():
     assert lines[2] == "| `selection_new` | 7 | 2 of 3 (0, 2) | 90 % (70 %) | 80 % (76 %) | 3 |"
     assert lines[3] == "| `selection_lists` | 8 | 0 of 1 | 50 % (50 %) | 60 % (60 %) | 4 |"
     assert lines[4] == "| `selection_dicts` | 9 | 1 of 2 (3) | 90 % (85 %) | 70 % (65 %) | 1 |"
+
+
+def test_ring_benchmark_times_this_checkout_against_another_with_the_documented_keys():
+    """``benchmarks/ring.py --timing-only --against DIR`` (here: this checkout again, on short rings)."""
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "ring.py"), "--timing-only", "--json",
+                        "--timing-rings", "2", "--timing-duration", "10", "--repeats", "2", "--against", str(ROOT)],
+                       capture_output=True, text=True, check=True, cwd=ROOT)
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    assert set(out["against"]) == {"timing_one_ring_10min", "timing_100_rings_10min"} and out["repeats"] == 2
+    for row in out["against"].values():
+        assert len(row["this_runs"]) == len(row["other_runs"]) == 2 and min(row["this_runs"] + row["other_runs"]) > 0
+        assert row["ratio"] == pytest.approx(row["this"] / row["other"])
