@@ -130,81 +130,33 @@ class EpisodeRun:
     """One episode of a (single) ACC environment stepped from outside: whoever holds it
     owns the environment, the scoring and the recording, and only feeds actions in.
 
-    :func:`run_episode` drives it with a controller in the same process; the leaderboard
-    drives it with actions that come back from a controller in another process, so both
-    produce the same values for the same actions."""
-
-    KEYS = ("x", "v", "a", "a_des", "y", "a_y", "lead", "gap", "mode")
+    :func:`run_episode` drives it with a controller in the same process. (The leaderboard's
+    trusted process steps its episodes as rows of one batch instead,
+    :class:`acc_gym.leaderboard.batch.Lockstep`: the same values for the same actions.)"""
 
     def __init__(self, env, *, seed: int | None = None, scenario=None, record: bool = True,
                  time_gap: float | None = None):
+        from acc_gym.simulation.single_lane import SceneRecord
+
         self.env, self.record, self.done, self.info = env, record, False, None
         options = {"scenario": scenario} if scenario is not None else {}
         if time_gap is not None:
             options["time_gap"] = time_gap
         options = options or None
         self.obs, _ = env.reset(seed=seed, options=options)
-        self.world = env.unwrapped.core.world
-        self.rows: dict[str, list] = {k: [] for k in self.KEYS}
-        if record:
-            self._snap(np.full(2, -1))
-
-    def _snap(self, modes) -> None:
-        world = self.world
-        for key in ("x", "v", "a", "a_des", "y", "a_y"):
-            self.rows[key].append(getattr(world, key)[:1].copy())
-        self.rows["lead"].append(world.neighbours.lead[:1].copy())
-        self.rows["gap"].append(world.neighbours.gap[:1].copy())
-        self.rows["mode"].append(np.concatenate([[-1], modes])[None, :])
+        self._scene = SceneRecord(env.unwrapped.core.world) if record else None
 
     def step(self, action: np.ndarray) -> bool:
         """Apply one ``(1,)`` float32 action; True once the episode has ended."""
         self.obs, _, term, trunc, self.info = self.env.step(action)
-        if self.record:
-            self._snap(self.info["modes"])
+        if self._scene is not None:
+            self._scene.snap(self.info["modes"])
         self.done = bool(term or trunc)
         return self.done
 
     def trace(self):
         """The whole scene as a :class:`~acc_gym.simulation.single_lane.WorldTrace` (needs ``record``)."""
-        from acc_gym.simulation.single_lane import WorldTrace
-
-        world = self.world
-        arr = {k: np.stack(v) for k, v in self.rows.items()}
-        return WorldTrace(t=np.arange(len(self.rows["x"])) * world.dt, **arr, present=world.present[:1].copy(),
-                          lengths=world.lengths[:1].copy(), width=world.width[:1].copy(),
-                          road=self.env.unwrapped.scenario.road)
-
-
-def run_lockstep(exchange, runs: dict, names: dict, first_slot: int = 0) -> dict:
-    """Drive the :class:`EpisodeRun` s ``runs`` (by index ``k``) all at once with a controller that
-    lives elsewhere: one round trip ``exchange(obs, starts, slots) -> actions`` per step carries a
-    row for every episode still running, episode ``k`` in slot ``first_slot + k`` (its copy is
-    ``reset()`` on its first row). Answers are checked: not one finite number per row is a
-    ``ValueError`` naming the count, or the value and the episode (``names[k]``); a finite action
-    is clipped to [-1, 1] and rounded to float32 as :func:`as_action` does. Returns the finished
-    runs by index (each a ``run`` whose ``info`` and ``trace()`` are the episode's)."""
-    runs = dict(runs)
-    done = {}
-    starts = {k: True for k in runs}
-    while runs:
-        ks = sorted(runs)
-        obs = np.stack([np.asarray(runs[k].obs, dtype=float) for k in ks])
-        raw = np.asarray(exchange(obs, np.array([starts[k] for k in ks]), first_slot + np.asarray(ks)))
-        starts = dict.fromkeys(starts, False)
-        if raw.dtype.kind not in "fiu" or raw.size != len(ks):
-            raise ValueError(f"the controller answered {len(ks)} observations with {raw.size} values "
-                             f"({raw.dtype}); expected {len(ks)} numbers")
-        actions = raw.astype(np.float64).reshape(-1)
-        bad = ~np.isfinite(actions)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise ValueError(f"the controller returned an action that is not finite: {float(actions[i])!r} (in "
-                             f"{names[ks[i]]})")
-        for k, a in zip(ks, np.clip(actions, -1.0, 1.0).astype(np.float32)):
-            if runs[k].step(np.array([a], dtype=np.float32)):
-                done[k] = runs.pop(k)
-    return done
+        return self._scene.trace(self.env.unwrapped.scenario.road)
 
 
 def run_episode(env, controller, *, seed: int | None = None, scenario=None, record: bool = True):

@@ -69,7 +69,7 @@ class Columns:
 
     def __iter__(self):
         """The columns to measure, in order: ``(name, measure, failed_cell)``; ``measure(column)``
-        takes a :class:`_Column` and returns the cell, raising :class:`ControllerFailed`."""
+        takes a :class:`_Trips` and returns the cell, raising :class:`ControllerFailed`."""
         from acc_gym.leaderboard import alks, iso15622, robustness, waves
 
         if self.platoon:
@@ -202,38 +202,35 @@ class Ledger:
 
 
 class _Where:
-    """Where a round trip was, described only if it failed (formatting it every step costs)."""
+    """Where the round trip under way is (the episodes of ``lockstep``'s rows: ``jobs[positions[k]]``
+    for its episode ``k``; ``positions`` None: ``k``), formatted only if it failed (formatting it
+    every step costs)."""
 
-    __slots__ = ("jobs", "indices", "done")
+    __slots__ = ("jobs", "lockstep", "done", "positions")
 
-    def __init__(self, jobs: list, indices: list[int], done: dict):
-        self.jobs, self.indices, self.done = jobs, indices, len(done)
+    def __init__(self, jobs: list, lockstep, done: dict, positions: list[int] | None = None):
+        self.jobs, self.lockstep, self.done, self.positions = jobs, lockstep, done, positions
+
+    def _job(self, k: int) -> Job:
+        return self.jobs[k if self.positions is None else self.positions[k]]
 
     def __str__(self) -> str:
-        job = self.jobs[min(self.indices)]
-        n = len(self.indices)
+        indices = self.lockstep.running
+        job = self._job(min(indices))
+        n = len(indices)
         more = f" and {n - 1} more in flight" if n > 1 else ""
-        return (f"{job.suite} episode {job.episode} ({job.scenario.id}){more}, after {self.done} of "
+        return (f"{job.suite} episode {job.episode} ({job.scenario.id}){more}, after {len(self.done)} of "
                 f"{len(self.jobs)} episodes")
+
+    def row(self, k: int) -> str:
+        """The episode of the round trip's row ``k``."""
+        return _job_name(self._job(self.lockstep.running[k]))
 
 
 class ControllerFailed(Exception):
     def __init__(self, reason: str, tb: str | None = None):
         super().__init__(reason)
         self.reason, self.tb = reason, tb
-
-
-def check_actions(actions, where) -> None:
-    """The one check of a controller's answers: a NaN or infinite action is its failure, named as
-    the environments name it (``where(k)``: where row ``k`` was)."""
-    import numpy as np
-
-    bad = ~np.isfinite(actions)
-    if bad.any():
-        k = int(np.argmax(bad))
-        value = actions[k]
-        raise ControllerFailed(f"ValueError: action {'is NaN' if np.isnan(value) else 'must be finite'}: {value!r} "
-                               f"(at {where(k)})")
 
 
 def _job_name(job: Job) -> str:
@@ -319,110 +316,32 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
     deadline_total = started + budget
     ctl = None
     try:
-        import numpy as np
-
         import acc_gym  # noqa: F401  (registers the ids)
-        from acc_gym.evaluation.runner import EpisodeRun
-        from acc_gym.leaderboard.batch import BatchRuns
+        from acc_gym.leaderboard.batch import Episode, Lockstep
 
         ctl = ControllerProcess(reference, log_path=log_path, budget=budget, uid=uid, sandbox=sandbox)
         declared = _hello(ctl, budget, deadline_total)  # the time gap it is judged at
-        envs: dict = {}
-
-        def env_for(slot: int, job: Job):
-            key = (slot, job.env_id, job.car)
-            return envs.get(key) or envs.setdefault(key, job.make_env())
-
-        first = [True]
-
-        def run_batched(order: list[int], on_done) -> None:
-            """Run the jobs ``order``, each env id's as rows of one :class:`EpisodeBatch` with
-            ``in_flight`` rows (its scenes step together, as single envs would)."""
-            by_env: dict[tuple, list[int]] = {}
-            for j in order:
-                by_env.setdefault((jobs[j].env_id, jobs[j].car), []).append(j)
-            for queue in by_env.values():
-                batch = BatchRuns(jobs[queue[0]].make_env().unwrapped, min(in_flight, len(queue)))
-                active: dict[int, int] = {}  # row -> job index
-                starts = np.zeros(batch.n, dtype=bool)
-                for row in range(batch.n):
-                    active[row] = queue.pop(0)
-                    batch.start(row, jobs[active[row]].scenario, declared)
-                    starts[row] = True
-                while active:
-                    rows = np.array(sorted(active))
-                    where = _Where(jobs, [active[r] for r in rows], done_records)
-                    step_deadline = None if first[0] else time.monotonic() + step_budget * len(rows)
-                    actions = _exchange(ctl, batch.obs[rows].astype(float), starts[rows], rows, step_deadline,
-                                        deadline_total, step_budget, budget, where)
-                    first[0] = False
-                    starts[:] = False
-                    check_actions(actions, lambda k: _job_name(jobs[active[int(rows[k])]]))
-                    for row, info in batch.step(rows, actions).items():
-                        on_done(active[row], info)
-                        if queue:
-                            active[row] = queue.pop(0)
-                            batch.start(row, jobs[active[row]].scenario, declared)
-                            starts[row] = True
-                        else:
-                            del active[row]
-                            batch.idle(row)
-
-        def run_jobs(order: list[int], record: bool, on_done) -> None:
-            """Run the jobs ``order`` in ``in_flight`` slots of single envs, lockstep round trips."""
-            queue = list(order)
-            active: dict[int, list] = {}  # slot -> [job index, EpisodeRun, starts now]
-
-            def start(slot: int) -> None:
-                if queue:
-                    j = queue.pop(0)
-                    job = jobs[j]
-                    active[slot] = [j, EpisodeRun(env_for(slot, job), seed=job.scenario.seed,
-                                                  scenario=job.scenario, record=record, time_gap=declared), True]
-
-            for slot in range(min(in_flight, len(queue))):
-                start(slot)
-            while active:
-                slots = sorted(active)
-                where = _Where(jobs, [active[s][0] for s in slots], done_records)
-                obs = np.stack([np.asarray(active[s][1].obs, dtype=float) for s in slots])
-                starts = np.array([active[s][2] for s in slots])
-                step_deadline = None if first[0] else time.monotonic() + step_budget * len(slots)
-                actions = _exchange(ctl, obs, starts, np.array(slots), step_deadline, deadline_total, step_budget,
-                                    budget, where)
-                first[0] = False
-                check_actions(actions, lambda k: _job_name(jobs[active[slots[k]][0]]))
-                for s, a in zip(slots, actions):
-                    j, run, _ = active[s]
-                    active[s][2] = False
-                    try:
-                        finished = run.step(np.array([a], dtype=np.float32))
-                    except ValueError as exc:  # what else the env refuses
-                        raise ControllerFailed(f"ValueError: {exc} (at {_job_name(jobs[j])})") from None
-                    if finished:
-                        del active[s]
-                        on_done(j, run)
-                        start(s)
-
+        episodes = [Episode(job.scenario, job.make_env, (job.env_id, job.car), _job_name(job)) for job in jobs]
         done_records: dict[int, dict] = {}
-
+        trips = _Trips(ctl, declared, step_budget, budget, deadline_total, 0)
         cc_envs: dict = {}
 
-        def record_episode(j: int, info: dict) -> None:
-            done_records[j] = episode_record(jobs[j], info)
+        def record_episode(j: int, finished) -> None:
+            done_records[j] = episode_record(jobs[j], finished.info)
             if done_records[j]["metrics"]["collision"]:  # UN R157: would the careful driver have avoided it?
                 done_records[j]["preventable"] = preventable(jobs[j], cc_envs)
-                done_records[j]["points"] = episode_points(info["report"], done_records[j]["preventable"])
+                done_records[j]["points"] = episode_points(finished.info["report"], done_records[j]["preventable"])
             conn.send(("episode", j, done_records[j]))
 
-        run_batched(list(range(len(jobs))), record_episode)
-        ordered = [done_records[j] for j in range(len(jobs))]
-        k = worst_index(ordered)
-        if traces and k is not None:
-            kept = {}
-            run_jobs([k], True, lambda j, run: kept.setdefault("run", run))
-            run = kept["run"]
-            conn.send(("trace", {"position": k, "score": float(run.info["score"]), "trace": run.trace(),
+        lockstep = Lockstep(episodes, in_flight, declared)
+        trips.where = _Where(jobs, lockstep, done_records)
+        lockstep.run(trips.exchange, record_episode)
+        k = worst_index([done_records[j] for j in range(len(jobs))])
+        if traces and k is not None:  # the worst episode again, recorded (the same episode: the same numbers)
+            lockstep = Lockstep([episodes[k]], 1, declared, record=True)
+            trips.where = _Where(jobs, lockstep, done_records, [k])
+            worst = lockstep.run(trips.exchange)[0]
+            conn.send(("trace", {"position": k, "score": float(worst.info["score"]), "trace": worst.trace,
                                  "time_gap": declared}))
         killed = None  # why the trusted side killed a controller process replaced since (a limit)
         sound = True  # the sandbox answered every round trip so far (its socket is in step)
@@ -435,7 +354,7 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
                     ctl = ControllerProcess(reference, log_path=log_path, budget=budget, uid=uid, sandbox=sandbox)
                     _hello(ctl, budget, deadline_total)  # judged at the time gap it declared first
                     fresh = 0
-                column = _Column(ctl, declared, step_budget, budget, deadline_total, fresh)
+                column = _Trips(ctl, declared, step_budget, budget, deadline_total, fresh)
                 cell, sound = measure(column), True
                 fresh = column.next_slot
             except ControllerFailed as exc:
@@ -462,12 +381,13 @@ def simulate(conn, reference: str, jobs: list, step_budget: float, budget: float
         shutil.rmtree(private_dir, ignore_errors=True)
 
 
-class _Column:
-    """A column's round trips with the sandboxed controller: budgets as in the episodes (the first
-    round trip of a column is exempt from the step budget: the sandbox makes its fresh copies
-    then; only the total budget bounds it), a NaN or infinite action is the controller's failure,
-    and :attr:`next_slot` is raised past every slot the column uses (from ``first_slot``), so that
-    a later column's copies are fresh ones."""
+class _Trips:
+    """Round trips with the sandboxed controller, for the episodes and for each column: budgets
+    measured here (the first round trip is exempt from the step budget: the controller loads, or
+    the sandbox makes a column's fresh copies, then; only the total budget bounds it), answers
+    checked by :func:`acc_gym.leaderboard.batch.check_answers` (a bad one is the controller's
+    failure, named with :attr:`where`), and :attr:`next_slot` raised past every slot used (from
+    ``first_slot``), so that a later column's copies are fresh ones."""
 
     def __init__(self, ctl, declared, step_budget: float, budget: float, deadline_total: float, first_slot: int):
         self.ctl, self.declared, self.first_slot = ctl, declared, first_slot
@@ -475,17 +395,22 @@ class _Column:
         self.next_slot, self.where, self._first = first_slot, "a column", True
 
     def exchange(self, obs, starts, slots):
+        from acc_gym.leaderboard.batch import BadAnswer, check_answers
+
         if len(slots):
             self.next_slot = max(self.next_slot, int(max(slots)) + 1)
         step_deadline = None if self._first else time.monotonic() + self.step_budget * len(slots)
         self._first = False
         actions = _exchange(self.ctl, obs, starts, slots, step_deadline, self.deadline_total, self.step_budget,
                             self.budget, self.where)
-        check_actions(actions, lambda k: self.where)
-        return actions
+        try:
+            return check_answers(actions, len(slots),
+                                 lambda k: self.where.row(k) if isinstance(self.where, _Where) else self.where)
+        except BadAnswer as exc:
+            raise ControllerFailed(f"ValueError: {exc}") from None
 
 
-def _platoon(column: _Column) -> dict:
+def _platoon(column: _Trips) -> dict:
     """The string-stability cell (:func:`acc_gym.evaluation.string_stability.leaderboard_verdict`),
     its column's copies in the controller's sandbox."""
     from acc_gym.evaluation.string_stability import leaderboard_verdict, remote_actors
@@ -494,7 +419,7 @@ def _platoon(column: _Column) -> dict:
     return leaderboard_verdict(remote_actors(column.exchange, column.first_slot), column.declared)
 
 
-def _iso15622(column: _Column) -> dict:
+def _iso15622(column: _Trips) -> dict:
     """The ISO 15622 cell (:mod:`acc_gym.leaderboard.iso15622`): the battery's episodes run here,
     in the simulation process, with the actions of the controller's copies in the sandbox (the
     battery's 30 fresh copies; a controller that cannot be copied is loaded again for each)."""
@@ -506,7 +431,7 @@ def _iso15622(column: _Column) -> dict:
                                        first_slot=column.first_slot))
 
 
-def _waves(column: _Column, baseline: dict) -> dict:
+def _waves(column: _Trips, baseline: dict) -> dict:
     """The wave cell (:mod:`acc_gym.leaderboard.waves`): the controller's rings run here with the
     actions of its copies in the sandbox, against the all-human rings ``baseline``."""
     from acc_gym.leaderboard.waves import remote_cell
@@ -515,7 +440,7 @@ def _waves(column: _Column, baseline: dict) -> dict:
     return remote_cell(column.exchange, column.declared, baseline)
 
 
-def _robustness(column: _Column) -> dict:
+def _robustness(column: _Trips) -> dict:
     """The robustness cell (:mod:`acc_gym.leaderboard.robustness`): the suite's episodes run here in
     a car with the typical radar and actuators, with the actions of the controller's fresh copies."""
     from acc_gym.leaderboard.robustness import remote_cell
@@ -524,7 +449,7 @@ def _robustness(column: _Column) -> dict:
     return remote_cell(column.exchange, column.declared, first_slot=column.first_slot)
 
 
-def _alks(column: _Column) -> dict:
+def _alks(column: _Trips) -> dict:
     """The UN R157 bundle's cell (:mod:`acc_gym.leaderboard.alks`): alks-v1's OpenSCENARIO runs here,
     the ego's actions from the controller's fresh copies in the sandbox, one per episode."""
     from acc_gym.leaderboard.alks import remote_cell

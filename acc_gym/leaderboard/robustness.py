@@ -72,20 +72,14 @@ def remote_cell(exchange, declared: float | None = None, first_slot: int = 0, ep
     """The cell with the controller reached through ``exchange(obs, starts, slots) -> actions``
     (the sandbox's round trip, as :func:`acc_gym.standards.battery.remote_iso15622_report` uses
     it): every episode at once, one round trip per step for the episodes still running, episode
-    ``k`` in slot ``first_slot + k`` (:func:`acc_gym.evaluation.runner.run_lockstep`, which checks
+    ``k`` in slot ``first_slot + k`` (:class:`acc_gym.leaderboard.batch.Lockstep`, which checks
     the answers)."""
-    from acc_gym.evaluation.runner import EpisodeRun, run_lockstep
+    from acc_gym.leaderboard.batch import Episode, Lockstep
 
     env_id, scenarios = _episodes()
     scenarios = scenarios[:episodes]
-    envs = [_env(env_id) for _ in scenarios]
-    try:
-        runs = {k: EpisodeRun(env, seed=sc.seed, scenario=sc, record=False, time_gap=declared)
-                for k, (env, sc) in enumerate(zip(envs, scenarios))}
-        done = run_lockstep(exchange, runs, {k: sc.id for k, sc in enumerate(scenarios)}, first_slot)
-    finally:
-        for env in envs:
-            env.close()
+    runs = [Episode(sc, lambda: _env(env_id), env_id, sc.id) for sc in scenarios]
+    done = Lockstep(runs, time_gap=declared, first_slot=first_slot).run(exchange)
     return _cell(env_id, scenarios, [done[k].info for k in range(len(scenarios))])
 
 

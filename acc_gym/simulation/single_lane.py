@@ -527,6 +527,37 @@ class WorldTrace:
         return np.any(self.gap <= 0.0, axis=0)
 
 
+class SceneRecord:
+    """Scene ``row`` of ``world`` (every vehicle) kept after each step, as a :class:`WorldTrace`
+    ``(T+1, 1, S)``: the one recorder of a stepped episode's scene (the single env's
+    :class:`~acc_gym.evaluation.runner.EpisodeRun`, the leaderboard's
+    :class:`~acc_gym.leaderboard.batch.BatchRuns`). Made at the episode's start (its first row,
+    modes -1)."""
+
+    STATE = ("x", "v", "a", "a_des", "y", "a_y")  # the world's (B, S) state arrays kept
+
+    def __init__(self, world: SingleLaneWorld, row: int = 0):
+        self.world, self.row = world, int(row)
+        self.rows: dict[str, list] = {k: [] for k in (*self.STATE, "lead", "gap", "mode")}
+        self.snap(np.full(2, -1, dtype=np.int64))
+
+    def snap(self, modes: np.ndarray) -> None:
+        """Keep the scene's state now; ``modes``: the surrounding drivers' (POV, POV2)."""
+        world, r = self.world, self.row
+        for key in self.STATE:
+            self.rows[key].append(getattr(world, key)[r:r + 1].copy())
+        self.rows["lead"].append(world.neighbours.lead[r:r + 1].copy())
+        self.rows["gap"].append(world.neighbours.gap[r:r + 1].copy())
+        self.rows["mode"].append(np.concatenate([[-1], modes])[None, :])
+
+    def trace(self, road: Road) -> WorldTrace:
+        """The scene so far, on ``road``."""
+        world, r = self.world, self.row
+        arr = {k: np.stack(v) for k, v in self.rows.items()}
+        return WorldTrace(t=np.arange(len(self.rows["x"])) * world.dt, **arr, present=world.present[r:r + 1].copy(),
+                          lengths=world.lengths[r:r + 1].copy(), width=world.width[r:r + 1].copy(), road=road)
+
+
 def rollout(world: SingleLaneWorld, steps: int, ego=None) -> WorldTrace:
     """Reset ``world`` and run it ``steps`` steps; the ego is driven by model ``ego`` (``n == B``)
     if given, else by ``world.drivers[0]``."""

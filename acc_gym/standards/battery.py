@@ -107,35 +107,30 @@ def remote_iso15622_report(exchange, time_gap: float | None = None, battery: str
     Decisions: every episode of the battery (30 for ``iso15622-v1`` at the three seeds) runs at
     once, each in its own slot (``first_slot + its index in`` :func:`battery_cases`), in lockstep:
     one round trip per step carries a row for every episode still running, so the battery costs
-    as many round trips as its longest episode has steps. Each episode is an
-    :class:`~acc_gym.evaluation.runner.EpisodeRun` of its own ``ENV_ID`` env stepped with
-    ``record=True``; a finished one is turned into a :class:`~acc_gym.standards.iso15622.Drive` here,
+    as many round trips as its longest episode has steps. The episodes are the rows of one
+    :class:`~acc_gym.leaderboard.batch.Lockstep` of ``ENV_ID`` with ``record=True`` (the
+    trusted process's one episode runner); a finished one is turned into a :class:`~acc_gym.standards.iso15622.Drive` here,
     and the drives (in the battery's order, as :func:`run_battery` lists them) are checked here:
     whoever calls this owns the simulation and the verdict, ``exchange`` only ever carries
     observations out and actions in. A controller's failure is whatever ``exchange`` raises: it
     ends the run (a remote controller's process does not survive its own error, so there are no
-    per-episode errors as :func:`run_battery` has). Answers are checked: not one finite number per
-    row is a ``ValueError`` naming the count or the value; a finite action is clipped to [-1, 1] and
-    rounded to float32 as :func:`~acc_gym.evaluation.runner.as_action` does."""
+    per-episode errors as :func:`run_battery` has). Answers are checked
+    (:func:`~acc_gym.leaderboard.batch.check_answers`): not one finite number per row is a
+    ``ValueError`` naming the count or the value and the case; a finite action is clipped to
+    [-1, 1] and rounded to float32 as :func:`~acc_gym.evaluation.runner.as_action` does."""
     import gymnasium as gym
     import numpy as np
 
     import acc_gym  # noqa: F401  (registers the ids)
-    from acc_gym.evaluation.runner import EpisodeRun, run_lockstep
     from acc_gym.evaluation.trace import EgoTrace
+    from acc_gym.leaderboard.batch import Episode, Lockstep
 
     if isinstance(first_slot, bool) or not isinstance(first_slot, (int, np.integer)) or first_slot < 0:
         raise ValueError(f"first_slot must be a non-negative integer, got {first_slot!r}")
     cases = battery_cases(battery, seeds)
-    envs = [gym.make(ENV_ID) for _ in cases]
-    try:
-        runs = {k: EpisodeRun(env, seed=seed, scenario=sc, record=True, time_gap=time_gap)
-                for k, (env, (_, seed, sc)) in enumerate(zip(envs, cases))}
-        done = run_lockstep(exchange, runs, {k: name for k, (name, _, _) in enumerate(cases)}, first_slot)
-    finally:
-        for env in envs:
-            env.close()
-    drives = [iso15622.Drive.from_trace(name, EgoTrace.from_world(done[k].trace(), 0, sc))
+    episodes = [Episode(sc, lambda: gym.make(ENV_ID), ENV_ID, name) for name, _, sc in cases]
+    done = Lockstep(episodes, time_gap=time_gap, first_slot=first_slot, record=True).run(exchange)
+    drives = [iso15622.Drive.from_trace(name, EgoTrace.from_world(done[k].trace, 0, sc))
               for k, (name, _, sc) in enumerate(cases)]
     return iso15622.check_drives(drives, limits)
 

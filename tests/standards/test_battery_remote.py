@@ -84,7 +84,7 @@ def test_first_slot_offsets_the_slots_and_a_bad_one_is_named():
 def test_bad_answers_are_named_and_the_exchange_s_errors_end_the_run():
     with pytest.raises(ValueError, match="answered 10 observations with 3 values"):
         remote_iso15622_report(lambda obs, starts, slots: np.zeros(3), None, seeds=(0,))
-    with pytest.raises(ValueError, match=r"not finite: nan \(in follow at 60 km/h \(seed 0\)\)"):
+    with pytest.raises(ValueError, match=r"action is NaN: nan \(at follow at 60 km/h \(seed 0\)\)"):
         remote_iso15622_report(lambda obs, starts, slots: np.full(len(slots), np.nan), None, seeds=(0,))
 
     class Gone(Exception):
