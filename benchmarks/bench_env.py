@@ -72,7 +72,7 @@ drivers' QPs: the cruise QP inside the resets, the follow QP at a driver's first
 ``vector_<case>_params_share`` (the part spent drawing the new scenarios' parameters with
 numpy's generators), medians over the repeats (:func:`vector_env_split`); and each single case
 once more, as ``<case>_reset_share`` (the time in ``env.reset()``), ``<case>_decide_share``
-(the surrounding drivers deciding, where they decide outside the step's compiled call),
+(the surrounding drivers deciding),
 ``<case>_us_per_reset``, ``<case>_us_per_step`` (a step
 without the resets) and ``<case>_steps_per_episode`` (:func:`single_env_split`).
 
@@ -251,9 +251,7 @@ def single_env_split(steps: int, seed: int, env_id: str = "acc_gym/SingleLane-v0
     ``reset_share`` is the run's time in ``env.reset()`` (drawing the scenario, building the
     scene, installing its drivers), ``decide_share`` the time the surrounding drivers take to
     decide (:meth:`SingleLaneWorld.decide <acc_gym.simulation.single_lane.SingleLaneWorld.decide>`,
-    wrapped on this env's world only; 0 where they decide inside the step's compiled call --
-    baseline models, profiles and absent vehicles with a built-in reward, acc-gym 0.23.2 --
-    whose time is then the step's), ``us_per_reset`` a reset's mean time and ``us_per_step``
+    wrapped on this env's world only), ``us_per_reset`` a reset's mean time and ``us_per_step``
     a step's without the resets [us]. The initial reset is outside the timed run."""
     env, actions = _single_env(steps, seed, env_id, settings)
     world = env.unwrapped.core.world

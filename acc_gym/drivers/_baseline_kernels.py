@@ -262,17 +262,20 @@ PROFILE, BASELINE = 2, 3  # SlotDrivers.kind's codes this kernel runs (0 no driv
 
 
 @numba.njit(cache=True)
-def slot_laws(obs, slot_kind, law_kind, params, two, dt, profile, clock, a_des):  # pragma: no cover - compiled
+def slot_laws(obs, laws, a_des):  # pragma: no cover - compiled
     """The desired accelerations of every surrounding vehicle of a world's step into
     ``a_des[:, 1:]`` (``(B, S)`` [m/s^2]), read from the world's observation array ``obs``
     (``(S, 8, B)``, :func:`acc_gym.simulation._world_kernel.observe_all`); slot ``s`` of scene
-    ``b`` is driver row ``r = (s - 1) B + b``. By ``slot_kind[r]``: :data:`BASELINE`, the
+    ``b`` is driver row ``r = (s - 1) B + b``. ``laws``: :meth:`SlotDrivers.compiled_laws
+    <acc_gym.drivers.slots.SlotDrivers.compiled_laws>`' tuple (the rows' kinds, laws, parameters,
+    switches, the step [s], the profiles and the clocks). By ``slot_kind[r]``: :data:`BASELINE`, the
     baseline model ``law_kind[r]`` (:data:`KINDS`) with parameters ``params[r]`` and ``two[r]``
     (:func:`law`, no reaction delay: the scene as it is now); :data:`PROFILE`, the speed
     profile row ``profile[r]`` played to its next sample ``min(clock[r] + 1, end)``, ``(that
     speed - v) / dt``; anything else (no driver) 0. The same numbers as each model's ``*_rows``
     kernel and :meth:`SlotDrivers._play_profiles <acc_gym.drivers.slots.SlotDrivers._play_profiles>`
-    (``tests/drivers/test_slots.py``)."""
+    (``tests/drivers/test_slots.py``). Then every row's clock advances by one."""
+    slot_kind, law_kind, params, two, dt, profile, clock = laws
     S = obs.shape[0]
     B = obs.shape[2]
     last = profile.shape[1] - 1
@@ -288,20 +291,19 @@ def slot_laws(obs, slot_kind, law_kind, params, two, dt, profile, clock, a_des):
                 a_des[b, s] = (profile[r, min(clock[r] + 1, last)] - v) / dt
             else:
                 a_des[b, s] = 0.0
+    for r in range(clock.shape[0]):
+        clock[r] += 1
 
 
 @numba.njit(cache=True)
-def decide_world(obs, slot_kind, law_kind, params, two, dt, profile, clock, ego_a, a_des):  # pragma: no cover
+def decide_world(obs, laws, ego_a, a_des):  # pragma: no cover - compiled
     """A world's whole decision when its surrounding drivers are :func:`slot_laws`'s: their
     accelerations into ``a_des[:, 1:]``, the ego's desired accelerations ``ego_a`` (``(B,)``
     [m/s^2]) into ``a_des[:, 0]``, and every row's clock advanced by one -- what
     :meth:`SingleLaneWorld.decide <acc_gym.simulation.single_lane.SingleLaneWorld.decide>`
     does with :meth:`SlotDrivers.act_world <acc_gym.drivers.slots.SlotDrivers.act_world>`, for
-    the compiled callers that step such a world (:func:`acc_gym.envs._kernel.laws_step_finish`,
-    :func:`acc_gym.simulation._rollout_kernel.coast`)."""
-    slot_laws(obs, slot_kind, law_kind, params, two, dt, profile, clock, a_des)
+    a compiled caller that steps such a world (:func:`acc_gym.simulation._rollout_kernel.coast`)."""
+    slot_laws(obs, laws, a_des)
     for b in range(a_des.shape[0]):
         a_des[b, 0] = ego_a[b]
-    for r in range(clock.shape[0]):
-        clock[r] += 1
 

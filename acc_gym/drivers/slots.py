@@ -55,7 +55,6 @@ class SlotDrivers:
         self._profile = np.zeros((self.n, 1))  # speeds at steps 0, 1, ... (held after the end)
         self._clock = np.zeros(self.n, dtype=np.int64)
         self._baseline = BaselineRows(self.n, self.dt)
-        self.assignments = 0  # drivers given so far (assign): a caller keeping compiled_laws()' arguments checks it
         self.info: dict[str, np.ndarray] = {}
         self.fallbacks = np.zeros(self.n, dtype=np.int64)  # solver fallbacks in the current episode
         self._no_modes = np.full(self.n, -1, dtype=np.int64)  # info["mode"] of a step without MPC drivers
@@ -66,7 +65,6 @@ class SlotDrivers:
         """Give scene ``row`` the driver ``spec`` (a :class:`~acc_gym.scenarios.spec.DriverSpec`
         or None for an absent vehicle) and restart it."""
         row = int(row)
-        self.assignments += 1
         self._baseline.remove(row)
         self._clock[row] = 0
         self.fallbacks[row] = 0
@@ -181,8 +179,7 @@ class SlotDrivers:
         (``tests/drivers/test_slots.py``)."""
         laws = self.compiled_laws()
         if laws is not None:
-            _bk.slot_laws(obs, *laws, a_des)
-            self._clock += 1
+            _bk.slot_laws(obs, laws, a_des)  # (it advances the clocks)
             return
         rows = np.empty((obs.shape[1], self.n))
         _WK.slot_rows(obs, rows)
@@ -191,9 +188,9 @@ class SlotDrivers:
     def compiled_laws(self) -> tuple | None:
         """When :meth:`act_world` is one compiled call (baseline models without a reaction delay,
         profiles and absent vehicles, every law a :data:`~acc_gym.drivers.baselines.MODELS`
-        class's): the arguments of :func:`~acc_gym.drivers._baseline_kernels.slot_laws` after
-        the observation array (the rows' kinds, laws, parameters, switches, the step, the
-        profiles and the clocks, which the caller advances by one a step), and ``info`` is then
+        class's): :func:`~acc_gym.drivers._baseline_kernels.slot_laws`' ``laws`` (the rows' kinds,
+        laws, parameters, switches, the step, the profiles and the clocks, which it advances by
+        one a step), and ``info`` is then
         every row's mode -1, as after such a call; else None. A caller that runs the laws
         itself over several steps (:meth:`SingleLaneWorld.coast
         <acc_gym.simulation.single_lane.SingleLaneWorld.coast>`) takes them from here."""

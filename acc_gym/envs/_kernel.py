@@ -10,6 +10,14 @@ the default :class:`~acc_gym.envs.reward.CriteriaReward`, :func:`settle` ends th
 the step into the episode records and :func:`action_to_accel` maps the actions.
 ``tests/envs/test_env_kernel.py`` checks them against numpy oracles kept in the tests
 (``tests/envs/reward_oracle.py``, ``tests/score_oracle.py``).
+
+A step is two calls, :func:`step` (the world's move, the criteria, a built-in reward) and
+:func:`finish` (the end of the step, the records, the observations), with the caller's reward
+between them when it is not built in. Both read the core's state as one :data:`CORE` record
+of four named records: the world (:data:`acc_gym.simulation._world_kernel.WORLD`), the
+scenes' episodes (:data:`SCENES`), the step's settings (:data:`PLAN`) and its outputs
+(:data:`OUT`); only what changes every step (the commands, the state before and after the
+move, the fresh observation arrays) is passed beside it.
 """
 
 from __future__ import annotations
@@ -18,8 +26,9 @@ import math
 
 import numba
 import numpy as np
+from numba.core import types
+from numba.experimental import structref
 
-from acc_gym.drivers._baseline_kernels import decide_world
 from acc_gym.evaluation.scoring import SPEED_TOL
 from acc_gym.envs import observation as _O
 from acc_gym.simulation import _world_kernel as _W
@@ -39,18 +48,149 @@ REWARD_NONE, REWARD_CRITERIA, REWARD_MARGIN = 0, 1, 2
 RECORD = ("t", "v", "a", "gap", "v_lead", "a_lead", "lead_id", "a_y", "d2", "d3")
 
 
+# ---------------------------------------------------------------------------------------
+# The step's records: named fields, each a few arguments of the kernels
+# ---------------------------------------------------------------------------------------
+
+class _Fields(types.StructRef):
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(t)) for name, t in fields)
+
+
+@structref.register
+class ScenesType(_Fields):
+    """numba's type of a :data:`SCENE_FIELDS` record."""
+
+
+@structref.register
+class PlanType(_Fields):
+    """numba's type of a :data:`PLAN_FIELDS` record."""
+
+
+@structref.register
+class OutType(_Fields):
+    """numba's type of an :data:`OUT_FIELDS` record."""
+
+
+@structref.register
+class CoreType(_Fields):
+    """numba's type of a :data:`CORE_FIELDS` record."""
+
+
+class Record(structref.StructRefProxy):
+    """A record of the environment core's step, as the kernels read it (fields: the ``*_FIELDS``
+    tables); Python keeps its own references to the same arrays (:class:`acc_gym.envs.core.EpisodeBatch`)."""
+
+
+for _t in (ScenesType, PlanType, OutType, CoreType):
+    structref.define_boxing(_t, Record)
+
+_F1, _F2, _F3 = types.float64[::1], types.float64[:, ::1], types.float64[:, :, ::1]
+_B1, _B2, _I1 = types.bool_[::1], types.bool_[:, ::1], types.int64[::1]
+# each scene's episode: (n,) arrays unless noted
+SCENE_FIELDS = (
+    ("set_speed", _F1),  # [m/s]
+    ("tau1", _F1),  # [s] the time gap the episode is judged at
+    ("grace", _F1),  # [s] the proper response's grace
+    ("lead_prev", _I1),  # the vehicle ahead at the last step (-1 none)
+    ("last_change", _F1),  # [s] when it last changed
+    ("neg_since", _F1),  # [s] when Q last turned negative (nan: it is not)
+    ("steps", _I1),  # the step budget
+    ("episode_return", _F1),
+    ("ego_width", _F1),  # [m]
+    ("lane_width", _F1),  # [m]
+    ("n_lanes", _F1),
+    ("time_gap", _F1),  # [s] the scenario's (the observation's)
+    ("rec", _F3),  # (RECORD, n, steps) the episode records
+)
+# what a step needs that changes only with the reward and the observation's bounds
+PLAN_FIELDS = (
+    ("cfg", _F1),  # the scoring constants criteria() reads
+    ("code", types.int64),  # REWARD_NONE, REWARD_CRITERIA or REWARD_MARGIN
+    ("a_comfort", types.float64),  # [m/s^2]
+    ("weights", _F1),  # the built-in reward's (TERMS' or MARGIN_W)
+    ("terminate", types.bool_),  # a violation ends the episode
+    ("obs_range", types.float64),  # [m] the observation's sensor range
+    ("v2v", types.bool_),
+    ("low", _F1), ("high", _F1),  # the v0 fields' bounds (empty: no observation made)
+    ("f_low", _F1), ("f_high", _F1),  # the safety-margin features' (empty for version 0)
+)
+# the step's outputs, the core's own arrays (overwritten by the next step)
+OUT_FIELDS = (
+    ("fl", _F2),  # (N_FLOAT + 1, n) criteria() rows, then the time F_T
+    ("bo", _B2),  # (N_BOOL, n)
+    ("terms", _F2),  # (terms, n) the built-in reward's
+    ("reward", _F1),
+    ("terminated", _B1), ("truncated", _B1),
+    ("rows", _I1), ("ended", _I1),  # the scenes stepped and those whose episode ended (first counts)
+)
+SCENES, PLAN, OUT = ScenesType(list(SCENE_FIELDS)), PlanType(list(PLAN_FIELDS)), OutType(list(OUT_FIELDS))
+CORE_FIELDS = (("world", _W.WORLD), ("scenes", SCENES), ("plan", PLAN), ("out", OUT))
+CORE = CoreType(list(CORE_FIELDS))
+
+
+@numba.njit(cache=True)
+def make_scenes(f):  # pragma: no cover - compiled
+    """A :data:`SCENES` record of the values ``f``, in :data:`SCENE_FIELDS` order."""
+    r = structref.new(SCENES)
+    r.set_speed, r.tau1, r.grace, r.lead_prev, r.last_change, r.neg_since, r.steps = f[0], f[1], f[2], f[3], f[4], f[5], f[6]
+    r.episode_return, r.ego_width, r.lane_width, r.n_lanes, r.time_gap, r.rec = f[7], f[8], f[9], f[10], f[11], f[12]
+    return r
+
+
+@numba.njit(cache=True)
+def make_plan(f):  # pragma: no cover - compiled
+    """A :data:`PLAN` record of the values ``f``, in :data:`PLAN_FIELDS` order."""
+    r = structref.new(PLAN)
+    r.cfg, r.code, r.a_comfort, r.weights, r.terminate, r.obs_range = f[0], f[1], f[2], f[3], f[4], f[5]
+    r.v2v, r.low, r.high, r.f_low, r.f_high = f[6], f[7], f[8], f[9], f[10]
+    return r
+
+
+@numba.njit(cache=True)
+def make_out(f):  # pragma: no cover - compiled
+    """An :data:`OUT` record of the values ``f``, in :data:`OUT_FIELDS` order."""
+    r = structref.new(OUT)
+    r.fl, r.bo, r.terms, r.reward, r.terminated, r.truncated, r.rows, r.ended = f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7]
+    return r
+
+
+@numba.njit(cache=True)
+def make_core(world, scenes, plan, out):  # pragma: no cover - compiled
+    """A :data:`CORE` record of these four."""
+    r = structref.new(CORE)
+    r.world, r.scenes, r.plan, r.out = world, scenes, plan, out
+    return r
+
+
+def record_of(fields: tuple, values: dict):
+    """The record of ``fields`` (a ``*_FIELDS`` table) holding ``values`` by name: the one place
+    their order is read (a C-contiguous array is shared, not copied)."""
+    make = {SCENE_FIELDS: make_scenes, PLAN_FIELDS: make_plan, OUT_FIELDS: make_out}[fields]
+    out = []
+    for name, t in fields:
+        value = values[name]
+        if isinstance(t, types.Array):
+            if not (isinstance(value, np.ndarray) and value.flags.c_contiguous and value.ndim == t.ndim):
+                raise ValueError(f"record field {name} must be a C-contiguous {t.ndim}-d array, got {value!r}")
+        out.append(value)
+    return make(tuple(out))
+
+
 @numba.njit(cache=True, error_model="numpy")
-def criteria(t, v, a, lead_all, gap_all, a_prev, dt, set_speed, tau1, grace, cfg,
-             lead_prev, last_change, neg_since, fl, bo):  # pragma: no cover - compiled
+def criteria(t, v, a, lead_all, gap_all, a_prev, dt, scenes, cfg, fl, bo):  # pragma: no cover - compiled
     """One step's criteria of the ego (slot 0) of every scene.
 
-    ``v``, ``a`` ``(n, S)`` and ``lead_all``, ``gap_all`` the world's neighbours; ``cfg`` the
-    scoring constants ``(b0, b1, band_width, steady_dv, moving_speed, transient,
-    sensor_range, response_decel, stop_speed, lead_margin)``. Updates ``lead_prev``, ``last_change``
-    and ``neg_since`` in place; writes ``fl`` (:data:`N_FLOAT`, n) and ``bo`` (:data:`N_BOOL`, n).
+    ``v``, ``a`` ``(n, S)`` and ``lead_all``, ``gap_all`` the world's neighbours; ``scenes`` the
+    episodes (a :data:`SCENES` record: set speeds, tau1, grace, and the memory of the vehicle
+    ahead and of Q below zero, which this updates); ``cfg`` the scoring constants ``(b0, b1,
+    band_width, steady_dv, moving_speed, transient, sensor_range, response_decel, stop_speed,
+    lead_margin)``. Writes ``fl`` (:data:`N_FLOAT`, n) and ``bo`` (:data:`N_BOOL`, n).
     """
     b0, b1, bw, steady_dv, moving, transient, sensor, resp_decel, stop_speed, lead_margin = (
         cfg[0], cfg[1], cfg[2], cfg[3], cfg[4], cfg[5], cfg[6], cfg[7], cfg[8], cfg[9])
+    set_speed, tau1, grace = scenes.set_speed, scenes.tau1, scenes.grace
+    lead_prev, last_change, neg_since = scenes.lead_prev, scenes.last_change, scenes.neg_since
     n = v.shape[0]
     for i in range(n):
         ti = t[i]
@@ -158,9 +298,12 @@ def settle(active, reward, bo, k, steps, terminate_on_violation, episode_return,
 
 
 @numba.njit(cache=True, error_model="numpy")
-def record(rows, k, t, v, a, lead_all, gap_all, a_y, y, width0, lane_width, n_lanes, rec):  # pragma: no cover
-    """Write the current state of scenes ``rows`` at their step ``k[row]`` into ``rec``
-    (:data:`RECORD` rows, scenes, steps)."""
+def record(rows, k, t, state, scenes):  # pragma: no cover - compiled
+    """Write the current state of scenes ``rows`` at their step ``k[row]`` into their episode
+    records (``scenes.rec``: :data:`RECORD` rows, scenes, steps). ``state``: the world's ``(v,
+    a, lead, gap, a_y, y)`` arrays ``(n, S)``; ``t`` the scenes' times [s]."""
+    v, a, lead_all, gap_all, a_y, y = state
+    width0, lane_width, n_lanes, rec = scenes.ego_width, scenes.lane_width, scenes.n_lanes, scenes.rec
     for r in range(rows.shape[0]):
         i = rows[r]
         kk = k[i]
@@ -232,100 +375,45 @@ def action_to_accel(action, accel_max, decel_max, out):  # pragma: no cover - co
 
 
 @numba.njit(cache=True, error_model="numpy")
-def step(a_des, present, x, v, a, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
-         sensor_range, F, I, obs_all,
-         set_speed, tau1, grace, cfg, lead_prev, last_change, neg_since, fl, bo,
-         with_reward, a_comfort, w, terms, reward, steps):  # pragma: no cover - compiled
-    """One environment step after the drivers decided (``a_des`` ``(n, S)``): the world's
-    move (:func:`acc_gym.simulation._world_kernel.move`; ``x``, ``v``, ``a`` the state
-    before it, the new one goes to ``F``, ``I``, ``obs_all``), :func:`criteria` into the
-    rows of ``fl`` (plus the scenes' new times in row :data:`F_T`) and ``bo`` and, with
-    ``with_reward``, a built-in reward: :data:`REWARD_CRITERIA` the default
-    (:func:`criteria_reward_rows`, weights ``w``), :data:`REWARD_MARGIN` the ``-v1`` ids'
-    (:func:`margin_reward_rows`, ``w`` its :data:`MARGIN_W`, ``steps`` the scenes' step
-    budgets), :data:`REWARD_NONE` none -- what
-    :meth:`acc_gym.envs.core.EpisodeBatch.step` does between the drivers and
-    :func:`finish`, in one call."""
-    n = k.shape[0]
+def step(a_des, x, v, a, F, I, obs_all, core):  # pragma: no cover - compiled
+    """The world's move and the step's judgement, after the drivers decided (``a_des`` ``(n,
+    S)`` [m/s^2]): :func:`acc_gym.simulation._world_kernel.move` from the state ``x``, ``v``,
+    ``a`` into ``F``, ``I``, ``obs_all`` (``core.world``), :func:`criteria` into ``core.out``'s
+    ``fl`` (plus the scenes' new times in row :data:`F_T`) and ``bo``, and the built-in reward
+    ``core.plan.code`` names: :data:`REWARD_CRITERIA` (:func:`criteria_reward_rows`),
+    :data:`REWARD_MARGIN` (:func:`margin_reward_rows`), :data:`REWARD_NONE` none (the caller's
+    reward fills ``core.out.reward``)."""
+    w, sc, p, o = core.world, core.scenes, core.plan, core.out
+    n = w.k.shape[0]
     a_prev = np.empty(n)
     for i in range(n):
         a_prev[i] = a[i, 0]  # the ego's applied acceleration before the step [m/s^2]
-    t = fl[F_T]
-    _W.move(a_des, present, x, v, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
-            sensor_range, F, I, obs_all, t)
-    criteria(t, F[1], F[2], I[0], F[6], a_prev, dt, set_speed, tau1, grace, cfg, lead_prev, last_change, neg_since,
-             fl, bo)
-    if with_reward == REWARD_CRITERIA:
-        criteria_reward_rows(fl, bo, set_speed, tau1, a_comfort, w, terms, reward)
-    elif with_reward == REWARD_MARGIN:
-        margin_reward_rows(fl, bo, set_speed, tau1, steps, k, a_comfort, w, terms, reward)
+    t = o.fl[F_T]
+    _W.move(a_des, x, v, w, F, I, obs_all, t)
+    criteria(t, F[1], F[2], I[0], F[6], a_prev, w.dt, sc, p.cfg, o.fl, o.bo)
+    if p.code == REWARD_CRITERIA:
+        criteria_reward_rows(o.fl, o.bo, sc.set_speed, sc.tau1, p.a_comfort, p.weights, o.terms, o.reward)
+    elif p.code == REWARD_MARGIN:
+        margin_reward_rows(o.fl, o.bo, sc.set_speed, sc.tau1, sc.steps, w.k, p.a_comfort, p.weights, o.terms, o.reward)
 
 
 @numba.njit(cache=True, error_model="numpy")
-def finish(active, reward, bo, k, steps, terminate_on_violation, episode_return, terminated, truncated, rows, ended,
-           fl, F, I, width0, lane_width, n_lanes, rec, obs_all, set_speed, time_gap, obs_range, v2v, low, high,
-           obs, f_low, f_high, obs32):  # pragma: no cover - compiled
-    """The rest of a step: :func:`settle`, :func:`record` of the active scenes, and the
-    ego's :func:`observe` into ``obs`` (``(n, m)``, or nothing when it has no rows); with
-    feature bounds ``f_low``, ``f_high`` (version 1; empty for version 0), the observation
-    with the safety-margin features as the environments emit it, :func:`features32` of
-    ``obs`` into ``obs32``. Returns :func:`settle`'s counts."""
-    n_rows, n_ended = settle(active, reward, bo, k, steps, terminate_on_violation, episode_return, terminated,
-                             truncated, rows, ended)
-    record(rows[:n_rows], k, fl[F_T], F[1], F[2], I[0], F[6], F[5], F[4], width0, lane_width, n_lanes, rec)
+def finish(active, F, I, obs_all, obs, obs32, core):  # pragma: no cover - compiled
+    """The end of a step (after :func:`step` and the caller's reward, in ``core.out.reward``):
+    :func:`settle` of the ``active`` scenes, :func:`record` of them, and the ego's
+    :func:`observe` of the new state (``F``, ``I``, ``obs_all``) into ``obs`` (``(n, m)``, or
+    nothing when it has no rows); with feature bounds (``core.plan.f_low``, ``f_high``; version
+    1, empty for version 0) the observation with the safety-margin features as the environments
+    emit it, :func:`features32` of ``obs`` into ``obs32``. Returns :func:`settle`'s counts."""
+    w, sc, p, o = core.world, core.scenes, core.plan, core.out
+    n_rows, n_ended = settle(active, o.reward, o.bo, w.k, sc.steps, p.terminate, sc.episode_return, o.terminated,
+                             o.truncated, o.rows, o.ended)
+    record(o.rows[:n_rows], w.k, o.fl[F_T], (F[1], F[2], I[0], F[6], F[5], F[4]), sc)
     if obs.shape[0] > 0:
-        observe(obs_all[0], set_speed, time_gap, obs_range, v2v, low, high, obs)
-        if f_low.shape[0] > 0:
-            features32(obs, obs_range, _O.B0, _O.B1, f_low, f_high, obs32)
+        observe(obs_all[0], sc.set_speed, sc.time_gap, p.obs_range, p.v2v, p.low, p.high, obs)
+        if p.f_low.shape[0] > 0:
+            features32(obs, p.obs_range, _O.B0, _O.B1, p.f_low, p.f_high, obs32)
     return n_rows, n_ended
-
-
-@numba.njit(cache=True, error_model="numpy")
-def step_finish(a_des, present, x, v, a, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
-                sensor_range, F, I, obs_all, set_speed, tau1, grace, cfg, lead_prev, last_change, neg_since, fl, bo,
-                with_reward, a_comfort, w, terms, reward, steps, active, terminate_on_violation, episode_return,
-                terminated, truncated, rows, ended, width0, lane_widths, n_lanes, rec, time_gap, obs_range, v2v, low,
-                high, obs, f_low, f_high, obs32):  # pragma: no cover - compiled
-    """:func:`step` with a built-in reward, then :func:`finish`, in one call (the arguments of
-    both, each once): a step of :meth:`acc_gym.envs.core.EpisodeBatch.step` whose reward is
-    built in has nothing to do between them. Returns :func:`finish`'s counts."""
-    step(a_des, present, x, v, a, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
-         sensor_range, F, I, obs_all, set_speed, tau1, grace, cfg, lead_prev, last_change, neg_since, fl, bo,
-         with_reward, a_comfort, w, terms, reward, steps)
-    return finish(active, reward, bo, k, steps, terminate_on_violation, episode_return, terminated, truncated, rows,
-                  ended, fl, F, I, width0, lane_widths, n_lanes, rec, obs_all, set_speed, time_gap, obs_range, v2v,
-                  low, high, obs, f_low, f_high, obs32)
-
-
-@numba.njit(cache=True, error_model="numpy")
-def laws_step_finish(ego_a, obs_now, slot_kind, law_kind, params, two, law_dt, profile, clock, present, x, v, a, vp,
-                     dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided, sensor_range, F, I,
-                     obs_all, set_speed, tau1, grace, cfg, lead_prev, last_change, neg_since, fl, bo, with_reward,
-                     a_comfort, w, terms, reward, steps, active, terminate_on_violation, episode_return, terminated,
-                     truncated, rows, ended, width0, lane_widths, n_lanes, rec, time_gap, obs_range, v2v, low, high,
-                     obs, f_low, f_high, obs32):  # pragma: no cover - compiled
-    """A whole step of a world whose surrounding drivers decide in one compiled call
-    (:meth:`SlotDrivers.compiled_laws <acc_gym.drivers.slots.SlotDrivers.compiled_laws>`:
-    baseline models without a reaction delay, profiles, absent vehicles) with a built-in
-    reward: :func:`~acc_gym.drivers._baseline_kernels.decide_world` on the current
-    observation array ``obs_now`` (``(S, 8, B)``) with the ego's desired accelerations ``ego_a``
-    (``(B,)`` [m/s^2]), then
-    :func:`step_finish` -- what :meth:`SingleLaneWorld.decide
-    <acc_gym.simulation.single_lane.SingleLaneWorld.decide>` and :func:`step_finish` do, in
-    their order, so the same numbers. Returns ``(-1, -1)`` and changes nothing when an ego
-    acceleration is not finite (the caller raises, naming it); else :func:`finish`'s counts."""
-    B = x.shape[0]
-    S = x.shape[1]
-    for b in range(B):
-        if not math.isfinite(ego_a[b]):
-            return -1, -1
-    a_des = np.empty((B, S))
-    decide_world(obs_now, slot_kind, law_kind, params, two, law_dt, profile, clock, ego_a, a_des)
-    return step_finish(a_des, present, x, v, a, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width,
-                       collided, sensor_range, F, I, obs_all, set_speed, tau1, grace, cfg, lead_prev, last_change,
-                       neg_since, fl, bo, with_reward, a_comfort, w, terms, reward, steps, active,
-                       terminate_on_violation, episode_return, terminated, truncated, rows, ended, width0,
-                       lane_widths, n_lanes, rec, time_gap, obs_range, v2v, low, high, obs, f_low, f_high, obs32)
 
 
 REACH_BAND = 0.2  # [-] MarginReward's reach term: the score's band, 0 < Q < 0.2 Gapsafe (ScoringConfig.band_width)

@@ -382,23 +382,11 @@ class ACCEnv(gym.Env):
         else:
             a_des = action_to_accel(check_actions(action, (1,)), self.config)
         core = self.core
-        reward, term, trunc, info = core.step(a_des, arrays=False)  # this row's info is made here
-        fl, bo, terms = core.last_rows
-        f = fl[:, 0].tolist()  # one conversion for every float of the step (criteria rows, time)
-        q = f[_K.F_Q]
-        mode = core.drivers.info.get("mode")  # rows: the POV's, then the POV2's (n = 1)
-        fb = core.drivers.fallbacks
-        out = {"t": f[_K.F_T], "q": q, "g": q, "gap_safe": f[_K.F_GS], "a_applied": f[_K.F_A],
-               "violation": bool(bo[_K.B_VIOLATION, 0]),
-               "modes": mode[:2].copy() if mode is not None else np.full(2, -1, np.int64),
-               "fallbacks": int(fb[0] + fb[1])}
-        if terms is not None:  # a built-in reward's terms, as one array
-            out["rewards"] = dict(zip(core.last_term_names, terms[:, 0].tolist()))
-        else:
-            out["rewards"] = {k: float(v[0]) for k, v in info["rewards"].items()}
+        reward, term, trunc, final = core.step(a_des)
+        out = core.info_row(0)
         out["scenario"] = self._scenario_id
-        if 0 in info["final"]:
-            out.update(info["final"][0])
+        if final:
+            out.update(final[0])
             self._needs_reset = True
             self._last_info = None
         else:

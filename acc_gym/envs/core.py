@@ -18,6 +18,8 @@ score see the true state.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from acc_gym._validation import check_finite
@@ -26,7 +28,7 @@ from acc_gym.envs import _kernel as K
 from acc_gym.envs.car import Car, true_fields
 from acc_gym.envs.config import EnvConfig
 from acc_gym.envs.observation import B0, B1, append_features, feature_bounds
-from acc_gym.envs.reward import CriteriaReward, MarginReward, StepIndicators
+from acc_gym.envs.reward import StepIndicators
 from acc_gym.evaluation.scoring import judged_tau1, score_record
 from acc_gym.evaluation.trace import EgoTrace
 from acc_gym.scenarios.spec import Scenario
@@ -77,22 +79,21 @@ class EpisodeBatch:
         self._grace = np.full(self.n, cfg.response_time) if cfg.response_time is not None else None
         self.obs_bounds: tuple[np.ndarray, np.ndarray] | None = None  # (low, high) float arrays: see step()
         self.last_obs: np.ndarray | None = None
-        self._no_bounds = np.zeros(1)
-        self._plan = None  # (reward_fn, obs_bounds, what step() needs of them): _step_plan()
-        self._scratch_buf = None  # step(arrays=False)'s arrays: _scratch()
-        self._prepared = None  # the single env's step's argument list, reused until a reset: _step_prepared()
-        self._rows_buf = np.empty((2, self.n), dtype=np.int64)  # finish()'s rows recorded and rows ended
+        self._plan: _StepPlan | None = None  # what a step needs of reward_fn and obs_bounds: _step_plan()
+        self._core = None  # (world record, plan, the kernels' CORE record): _kernel_core()
+        self._python_terms: dict | None = None  # the last step's terms of a reward that is not built in
         self.car = Car.of(config, self.n, DT)  # the ego's radar, actuators and V2V link (None: none modelled)
         self._cfg = np.array([cfg.b0, cfg.b1, cfg.band_width, cfg.steady_dv, cfg.moving_speed, cfg.transient,
                               cfg.sensor_range, cfg.response_decel, cfg.stop_speed, cfg.lead_margin], dtype=float)
 
     def __getstate__(self) -> dict:
         state = dict(self.__dict__)
-        state["_prepared"] = None  # made again after unpickling (pickle copies views: the list's would be stale)
+        state["_plan"] = state["_scenes"] = state["_core"] = None  # compiled records: made again after unpickling
         return state
 
     def _set_record(self, arr: np.ndarray) -> None:
         self._rec_arr = arr  # (columns, scenes, steps)
+        self._scenes = self._core = None  # the SCENES record holds it: made again
 
     @property
     def _rec(self) -> dict[str, np.ndarray]:
@@ -105,7 +106,6 @@ class EpisodeBatch:
         (``rngs[j]``) unless ``scenarios[j]`` is given; ``time_gaps[j]`` (None: none) is the
         controller's declared time gap the episode is judged at
         (:func:`acc_gym.evaluation.scoring.judged_tau1`)."""
-        self._prepared = None  # step()'s argument list is made again for the new episodes
         rows = [int(r) for r in np.atleast_1d(rows)]
         given = scenarios if scenarios is not None else [None] * len(rows)
         missing = [j for j, sc in enumerate(given) if sc is None]
@@ -126,7 +126,7 @@ class EpisodeBatch:
         arr = scene_arrays(chosen, self.world.road)
         self.world.reset_rows(rows, arr.x0, arr.v0, present=arr.present, lateral=arr.lateral, lengths=arr.length,
                               width=arr.width)
-        self._ego_width = np.ascontiguousarray(self.world.width[:, 0])  # for _record (widths change only here)
+        self._ego_width[:] = self.world.width[:, 0]  # for the records (widths change only here)
         for s, slot in enumerate(self.slots, start=1):
             for j, row in enumerate(rows):
                 slot.assign(row, arr.drivers[s][j])
@@ -187,8 +187,8 @@ class EpisodeBatch:
         """Write the current state of scenes ``rows`` into their episode records at their step."""
         w = self.world
         nb = w.neighbours
-        K.record(np.asarray(rows, dtype=np.int64), w.k, w.t, w.v, w.a, nb.lead, nb.gap, w.a_y, w.y,
-                 self._ego_width, self.lane_width, self.n_lanes, self._rec_arr)
+        K.record(np.asarray(rows, dtype=np.int64), w.k, w.t, (w.v, w.a, nb.lead, nb.gap, w.a_y, w.y),
+                 self._scenes_record())
 
     # ------------------------------------------------------------------ observation
     def observe(self, low=None, high=None, dtype=np.float64) -> np.ndarray:
@@ -245,250 +245,162 @@ class EpisodeBatch:
         return out.astype(dtype, copy=False)
 
     # ------------------------------------------------------------------ step
-    def step(self, a_des: np.ndarray, active: np.ndarray | None = None, arrays: bool = True):
+    def step(self, a_des: np.ndarray, active: np.ndarray | None = None):
         """Advance every scene by one step with the egos' commanded accelerations ``a_des``
-        [m/s^2] (:meth:`advance`), through their car when the config models one (module
-        docstring)."""
+        [m/s^2] ``(n,)``.
+
+        Returns ``(reward, terminated, truncated, final)``: arrays over the scenes, the core's
+        own (the next step overwrites them: copy to keep), and the final info of each episode
+        that ended this step, by scene (those scenes are now done). Scenes not ``active``
+        (default: those not done) are stepped, but their results are meaningless (a vector
+        env's scenes about to be reset). :meth:`info` and :meth:`info_row` give the step's info;
+        with :attr:`obs_bounds` set, :attr:`last_obs` holds the observations after the step.
+
+        Every driver decides from one snapshot (:meth:`SingleLaneWorld.decide
+        <acc_gym.simulation.single_lane.SingleLaneWorld.decide>`, compiled where the drivers
+        are), then one compiled call moves the world and judges the step
+        (:func:`acc_gym.envs._kernel.step`), a reward that is not built in is called on its
+        criteria, and a second call ends it (:func:`~acc_gym.envs._kernel.finish`); both read
+        the core as one record (:meth:`_kernel_core`). The world's state alternates between two
+        sets of arrays (:meth:`SingleLaneWorld.reused_buffers
+        <acc_gym.simulation.single_lane.SingleLaneWorld.reused_buffers>`): a state array read
+        from :attr:`world` keeps its values until the step after next. With a car in the config
+        the command passes its actuators first and the observation its radar and link last
+        (module docstring).
+        """
+        if self.car is not None:
+            a_des = self._car_command(a_des)
+        core, plan = self._kernel_core()
+        w = self.world
+        a_all = w.decide(a_des)
+        x, v, a = w.x, w.v, w.a
+        buf = w.reused_buffers()
+        buf.obs.setflags(write=True)
+        K.step(a_all, x, v, a, buf.F, buf.I, buf.obs, core)
+        w.adopt_buffers(buf)  # the world has moved (whatever the reward below does)
+        self._python_terms = self._python_reward(plan) if plan.code == K.REWARD_NONE else None
+        obs, obs32 = plan.fresh_observations(self.n)
+        active = ~self.done if active is None else active
+        n_rows, n_ended = K.finish(active, buf.F, buf.I, buf.obs, obs, obs32, core)
+        self.last_obs = obs32 if plan.m0 is not None else None
+        if self.car is not None:
+            self._car_after_step()
+        return plan.reward, plan.terminated, plan.truncated, self._ended(plan.ended[:n_ended])
+
+    def _python_reward(self, plan: "_StepPlan") -> dict:
+        """A reward that is not built in, on the step's criteria: its reward into the step's
+        reward array; returns its terms."""
+        ind = StepIndicators.from_rows(plan.fl.copy(), plan.bo.copy(), self.set_speed, self.tau1, plan.a_comfort,
+                                       steps_left=self.steps - self.world.k)
+        reward, terms = self.reward_fn(ind)
+        plan.reward[:] = np.broadcast_to(np.asarray(reward, dtype=float), (self.n,))
+        return terms
+
+    def _car_command(self, a_des: np.ndarray) -> np.ndarray:
+        """The command as the car's actuators realise it (its radar and link started first for
+        the episodes that just began)."""
         car = self.car
-        if car is None:
-            return self.advance(a_des, active, arrays)
         if car.pending:
             m0 = 11 if self.config.v2v else 7
             car.start_pending(self.world, true_fields(self, np.full(m0, -np.inf), np.full(m0, np.inf)))
-        if car.actuators is not None:
-            if not np.isfinite(a_des).all():
-                check_finite("ego_a_des", a_des)  # raises, naming it, before it enters the actuators' history
-            a_des = car.command(a_des, self.world.a[:, 0])
-        out = self.advance(a_des, active, arrays)
-        self._car_after_step()
-        return out
+        if car.actuators is None:
+            return a_des
+        if not np.isfinite(a_des).all():
+            check_finite("ego_a_des", a_des)  # raises, naming it, before it enters the actuators' history
+        return car.command(a_des, self.world.a[:, 0])
 
-    def advance(self, a_des: np.ndarray, active: np.ndarray | None = None, arrays: bool = True):
-        """Advance every scene by one step with desired ego accelerations ``a_des`` [m/s^2].
+    # the floats of a step's info: its key and criteria row
+    _INFO_ROWS = (("t", K.F_T), ("q", K.F_Q), ("g", K.F_Q), ("gap_safe", K.F_GS), ("a_applied", K.F_A))
 
-        Returns ``(reward, terminated, truncated, info)`` as arrays over the scenes;
-        ``info`` holds per-step arrays and, under ``"final"``, a dict row -> final info for
-        the episodes that ended. Scenes not ``active`` are stepped but their results are
-        meaningless (a vector env's scenes that are about to be reset). With
-        :attr:`obs_bounds` set, :attr:`last_obs` holds the observations after the step.
-        With ``arrays=False`` (the single env, which reads :attr:`last_rows` and the drivers
-        itself) ``info`` holds only ``"final"`` and, for a reward that is not built in,
-        ``"rewards"``: the per-step arrays are not assembled, and with a built-in reward the
-        returned ``reward``, ``terminated``, ``truncated`` and :attr:`last_rows` are the core's
-        own arrays, which the next such step overwrites (read them before; :attr:`last_obs` is
-        always fresh, and so is everything a caller's ``reward_fn`` is given).
-
-        The drivers decide in :meth:`SingleLaneWorld.decide
-        <acc_gym.simulation.single_lane.SingleLaneWorld.decide>`; everything after them (the
-        world's move, the criteria, a built-in reward, the end of the step, the record and
-        the observations) is one compiled call, :func:`acc_gym.envs._kernel.step_finish`
-        (with the caller's reward, computed between them: :func:`acc_gym.envs._kernel.step`
-        and :func:`~acc_gym.envs._kernel.finish`). When the surrounding drivers decide in one
-        compiled call themselves (baseline models without a reaction delay, profiles, absent
-        vehicles: :meth:`SlotDrivers.compiled_laws
-        <acc_gym.drivers.slots.SlotDrivers.compiled_laws>`) and the reward is built in, their
-        decision joins that call too (:func:`acc_gym.envs._kernel.laws_step_finish`; ``a_des``
-        a float64 array ``(n,)``), and the world's state then moves between two sets of arrays
-        in turn (:meth:`SingleLaneWorld.reused_buffers
-        <acc_gym.simulation.single_lane.SingleLaneWorld.reused_buffers>`): a state array read
-        from :attr:`world` keeps its values until the step after next (copy it to keep it).
-        The single env's steps (``arrays=False``) after the first of an episode on that path
-        reuse its argument list with the entries that change every step replaced
-        (:meth:`_step_prepared`; made again after every :meth:`reset_rows`).
-        These are the same kernels, in the same order, that
-        :meth:`SingleLaneWorld.decide`, :meth:`SingleLaneWorld.move` and the separate
-        criteria, reward, settle, record and observe calls run
-        (``tests/envs/test_env_fast_paths.py`` checks the two agree).
-        """
-        w = self.world
-        n = self.n
-        step_plan = self._step_plan()
-        prepared = self._prepared
-        if (prepared is not None and prepared[0] is step_plan and not arrays and active is None
-                and prepared[-1] == self.drivers.assignments  # no driver given since (a reset, or by hand)
-                and type(a_des) is np.ndarray and a_des.dtype == np.float64 and a_des.shape == (n,)):
-            return self._step_prepared(a_des, prepared)
-        (code, names, weights, a_comfort, grace, low, high, m0, extra, f_low, f_high, obs_range, v2v,
-         terminate) = step_plan
-        laws = None
-        if code != K.REWARD_NONE and type(a_des) is np.ndarray and a_des.dtype == np.float64 and a_des.shape == (n,):
-            joint = getattr(w, "joint", None)
-            laws = joint.compiled_laws() if joint is not None else None  # the drivers' decision joins the step
-        if laws is None:
-            a_all = w.decide(a_des)
-            F, I, obs_all = w.move_buffers()
-        else:  # nobody but this step reads the state's arrays: two sets reused in turn
-            buf = w.reused_buffers()
-            F, I, obs_all = buf.F, buf.I, buf.obs
-            obs_all.setflags(write=True)
-        if arrays or code == K.REWARD_NONE:  # arrays handed out (in info, or to the caller's reward): fresh ones
-            fl = np.empty((K.N_FLOAT + 1, n))  # criteria rows, then the time (K.F_T)
-            bo = np.empty((K.N_BOOL, n), dtype=bool)
-            terms_arr = np.empty((len(names), n))
-            reward = np.empty(n)
-            terminated, truncated = np.empty((2, n), dtype=bool)
-        else:  # the single env with a built-in reward reads them before the next step (last_rows): the core's own
-            fl, bo, terms_arr, reward, terminated, truncated = self._scratch(len(names))
-        rows, ended = self._rows_buf
-        own_active = active is None  # which scenes step: the not-done ones (the single env's case)
-        if own_active:
-            active = ~self.done
-        if m0 is not None:  # obs_bounds set: the observations after the step, fresh (handed out)
-            obs = np.empty((n, m0), dtype=float if extra else np.float32)
-            obs32 = np.empty((n, m0 + extra), dtype=np.float32) if extra else obs  # version 1: the emitted one
-        else:
-            obs = obs32 = np.empty((0, 1), dtype=np.float32)
-        lat = w.lateral
-        terms = None  # made below only for the arrays' info (the single env reads terms_arr)
-        if code != K.REWARD_NONE:  # a built-in reward: the whole step in one compiled call
-            # step_finish's arguments after the drivers' accelerations (laws_step_finish's after the laws)
-            world_and_scenes = (
-                w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1, lat.t_start, lat.duration, w.lengths,
-                w.width, float(w.road.lane_width), w.collided, w.sensor_range, F, I, obs_all, self.set_speed,
-                self.tau1, grace, self._cfg, self.lead_prev, self.last_change, self.neg_since, fl, bo, code, a_comfort,
-                weights, terms_arr, reward, self.steps, active, terminate, self.episode_return, terminated, truncated,
-                rows, ended, self._ego_width, self.lane_width, self.n_lanes, self._rec_arr, self.time_gap, obs_range,
-                v2v, low, high, obs, f_low, f_high, obs32)
-            if laws is not None:  # drivers of one compiled call too: they decide inside it
-                w.observation_array(0)  # every slot's observations of the state, (S, 8, B), made if not yet
-                args = [a_des, w._obs, *laws, *world_and_scenes]
-                n_ended = self._laws_call(args, buf)
-                if (not arrays and own_active and m0 is not None and args[self._L_EGO] is a_des
-                        and args[self._L_F] is F and args[self._L_OBS_ALL] is obs_all and args[self._L_ACTIVE] is active
-                        and args[self._L_OBS] is obs and args[self._L_OBS32] is obs32):  # (the positions below hold)
-                    # the single env's next steps until a reset: these arguments with the per-step ones replaced
-                    self._prepared = (step_plan, args, (fl, bo, terms_arr), names, reward, terminated, truncated,
-                                      ended, (n, m0), np.float32 if not extra else float, (n, m0 + extra),
-                                      self.drivers.assignments)
-            else:
-                n_rows, n_ended = K.step_finish(a_all, *world_and_scenes)
-                w.adopt(F, I, obs_all)
-        else:  # the caller's reward, from the criteria rows, between the two halves
-            K.step(a_all, w.present, w.x, w.v, w.a, w._vp, w.dt, w.k, lat.y0, lat.y1, lat.t_start, lat.duration,
-                   w.lengths, w.width, float(w.road.lane_width), w.collided, w.sensor_range, F, I, obs_all,
-                   self.set_speed, self.tau1, grace, self._cfg, self.lead_prev, self.last_change, self.neg_since,
-                   fl, bo, code, a_comfort, self._cfg, terms_arr, reward, self.steps)
-            w.adopt(F, I, obs_all)
-            ind = StepIndicators.from_rows(fl, bo, self.set_speed, self.tau1, a_comfort,
-                                           steps_left=self.steps - w.k)
-            reward, terms = self.reward_fn(ind)
-            reward = np.asarray(reward, dtype=float)
-            if reward.shape != (n,):
-                reward = np.broadcast_to(reward, (n,)).copy()
-            terms_arr = None
-            names = tuple(terms)
-            n_rows, n_ended = K.finish(active, reward, bo, w.k, self.steps, terminate, self.episode_return,
-                                       terminated, truncated, rows, ended, fl, F, I, self._ego_width, self.lane_width,
-                                       self.n_lanes, self._rec_arr, obs_all, self.set_speed, self.time_gap, obs_range,
-                                       v2v, low, high, obs, f_low, f_high, obs32)
-        self.last_obs = obs32 if obs32.shape[0] else None
-        # the step's criteria rows and, for the built-in rewards, their terms as one array (rows: names)
-        self.last_rows = (fl, bo, terms_arr)
-        self.last_term_names = names
-        if not arrays:
-            return reward, terminated, truncated, self._ended_info({} if terms_arr is not None else {"rewards": terms},
-                                                                   ended, n_ended)
-        if terms is None:
-            terms = dict(zip(names, terms_arr))
-        q = fl[K.F_Q]
-        info = {"t": fl[K.F_T], "q": q, "g": q, "gap_safe": fl[K.F_GS], "a_applied": fl[K.F_A],
-                "violation": bo[K.B_VIOLATION], "modes": self.modes(), "fallbacks": self.fallbacks(), "rewards": terms}
-        return reward, terminated, truncated, self._ended_info(info, ended, n_ended)
-
-    def _ended_info(self, info: dict, ended: np.ndarray, n_ended: int) -> dict:
-        """``info`` with ``"final"``: the final info of each of the first ``n_ended`` scenes in
-        ``ended`` (their episodes ended this step, now marked done)."""
-        if n_ended:
-            ended = ended[:n_ended]
-            info["final"] = {int(r): self._final(int(r)) for r in ended}
-            self.done[ended] = True
-        else:
-            info["final"] = {}
+    def info(self) -> dict:
+        """The last step's info over the scenes, as fresh arrays: the time ``t`` [s], ``q`` and
+        ``g`` (Q [m]), ``gap_safe`` [m], ``a_applied`` [m/s^2], ``violation``, the surrounding
+        drivers' ``modes`` ``(n, 2)``, their solver ``fallbacks`` this episode and the reward's
+        terms under ``rewards``."""
+        plan = self._step_plan()
+        info = {key: plan.fl[row].copy() for key, row in self._INFO_ROWS}
+        info.update(violation=plan.bo[K.B_VIOLATION].copy(), modes=self.modes(), fallbacks=self.fallbacks(),
+                    rewards=self._python_terms if self._python_terms is not None else
+                    dict(zip(plan.names, plan.terms.copy())))
         return info
 
-    # positions in laws_step_finish's arguments (step()'s list) of those that change every step
-    _L_EGO, _L_OBS_NOW, _L_X, _L_V, _L_A, _L_F, _L_I, _L_OBS_ALL, _L_ACTIVE, _L_OBS, _L_OBS32 = (
-        0, 1, 10, 11, 12, 25, 26, 27, 43, 59, 62)
+    def info_row(self, row: int) -> dict:
+        """:meth:`info` of scene ``row``, as Python numbers (the single environment's)."""
+        plan = self._plan if self._plan is not None else self._step_plan()
+        f = plan.fl[:, row].tolist()  # one conversion for every float of the step
+        info = {key: f[k] for key, k in self._INFO_ROWS}
+        mode = self.drivers.info.get("mode")  # rows: each slot's scenes in turn
+        fb = self.drivers.fallbacks
+        info.update(violation=bool(plan.bo[K.B_VIOLATION, row]),
+                    modes=mode[row::self.n].copy() if mode is not None else np.full(SLOTS - 1, -1, np.int64),
+                    fallbacks=int(fb[row]) + int(fb[row + self.n]))  # the POV's and the POV2's
+        terms = self._python_terms
+        info["rewards"] = (dict(zip(plan.names, plan.terms[:, row].tolist())) if terms is None
+                           else {k: float(np.asarray(v).reshape(-1)[row]) for k, v in terms.items()})
+        return info
 
-    def _laws_call(self, args: list, buf) -> int:
-        """:func:`acc_gym.envs._kernel.laws_step_finish` on ``args``, then the world takes the
-        state it wrote into ``buf``; a non-finite ego command raises before anything moves,
-        naming it as :meth:`SingleLaneWorld.decide` does. Returns how many episodes ended."""
-        n_rows, n_ended = K.laws_step_finish(*args)
-        if n_rows < 0:
-            buf.obs.setflags(write=False)
-            check_finite("ego_a_des", args[self._L_EGO])  # raises, naming the value (nothing moved)
-        self.world.adopt_buffers(buf)
-        return n_ended
+    def _ended(self, ended: np.ndarray) -> dict:
+        """The final info of each scene in ``ended`` (their episodes ended this step, now marked done)."""
+        if not ended.shape[0]:
+            return {}
+        self.done[ended] = True
+        return {int(r): self._final(int(r)) for r in ended}
 
-    def _step_prepared(self, a_des: np.ndarray, prepared: tuple):
-        """:meth:`step` of the single env (``arrays=False``) once a step of this episode has
-        taken the drivers-inside path (:func:`acc_gym.envs._kernel.laws_step_finish`): its
-        argument list again, with the entries that change every step replaced (the ego's
-        command, the current state's observations and arrays, the buffers it moves into, which
-        scenes are active, the fresh observation arrays) -- the same call, without the
-        per-step assembly. Made again after every :meth:`reset_rows`, change of the plan and
-        driver given to a slot (:attr:`SlotDrivers.assignments <acc_gym.drivers.slots.SlotDrivers.assignments>`)."""
-        (_, args, rows3, names, reward, terminated, truncated, ended, obs_shape, obs_dtype, obs32_shape, _) = prepared
-        w = self.world
-        buf = w.reused_buffers()
-        obs_all = buf.obs
-        obs_all.setflags(write=True)
-        w.observation_array(0)
-        obs = np.empty(obs_shape, dtype=obs_dtype)
-        obs32 = np.empty(obs32_shape, dtype=np.float32) if obs_dtype is float else obs
-        args[self._L_EGO] = a_des
-        args[self._L_OBS_NOW] = w._obs
-        args[self._L_X], args[self._L_V], args[self._L_A] = w.x, w.v, w.a
-        args[self._L_F], args[self._L_I], args[self._L_OBS_ALL] = buf.F, buf.I, obs_all
-        args[self._L_ACTIVE] = ~self.done
-        args[self._L_OBS], args[self._L_OBS32] = obs, obs32
-        n_ended = self._laws_call(args, buf)
-        self.last_obs = obs32
-        self.last_rows = rows3
-        self.last_term_names = names
-        return reward, terminated, truncated, self._ended_info({}, ended, n_ended)
+    def _scenes_record(self):
+        """The episodes' arrays as one :data:`~acc_gym.envs._kernel.SCENES` record (made again
+        when the episode records grow)."""
+        if self._scenes is None:
+            grace = self._grace if self._grace is not None else self.tau1  # the configured one, or each scene's tau1
+            self._scenes = K.record_of(K.SCENE_FIELDS, dict(
+                set_speed=self.set_speed, tau1=self.tau1, grace=grace, lead_prev=self.lead_prev,
+                last_change=self.last_change, neg_since=self.neg_since, steps=self.steps,
+                episode_return=self.episode_return, ego_width=self._ego_width, lane_width=self.lane_width,
+                n_lanes=self.n_lanes, time_gap=self.time_gap, rec=self._rec_arr))
+        return self._scenes
 
-    def _step_plan(self) -> tuple:
+    def _kernel_core(self) -> tuple:
+        """The kernels' :data:`~acc_gym.envs._kernel.CORE` record (the world's, the scenes', the
+        plan's and the outputs' records) and the step's plan, made again when one of them is."""
+        plan = self._step_plan()
+        world = self.world.kernel_record()
+        core = self._core
+        if core is None or core[0] is not world or core[1] is not plan:
+            core = self._core = (world, plan, K.make_core(world, self._scenes_record(), plan.record, plan.out))
+        return core[2], plan
+
+    def _step_plan(self) -> "_StepPlan":
         """What a step needs that changes only with :attr:`reward_fn` and :attr:`obs_bounds`
         (made again when either is replaced): the built-in reward's code, term names and
-        weights, the comfort bound, the proper-response grace per scene, the observation's
-        bounds (the v0 fields' part; ``m0`` None without bounds) and the features'."""
+        weights (:meth:`CriteriaReward.compiled_terms
+        <acc_gym.envs.reward.CriteriaReward.compiled_terms>`; none for another reward), the
+        observation's bounds, and the step's output arrays."""
         plan = self._plan
-        if plan is not None and plan[0] is self.reward_fn and plan[1] is self.obs_bounds:
-            return plan[2]
-        kind = type(self.reward_fn)
-        code = K.REWARD_CRITERIA if kind is CriteriaReward else K.REWARD_MARGIN if kind is MarginReward \
-            else K.REWARD_NONE  # MarginReward: the -v1 ids' default
-        cfg = self.config.scoring
+        if plan is not None and plan.reward_fn is self.reward_fn and plan.obs_bounds is self.obs_bounds:
+            return plan
+        compiled = getattr(self.reward_fn, "compiled_terms", None)
+        compiled = compiled() if compiled is not None else None
+        code, weights, names = compiled if compiled is not None else (K.REWARD_NONE, self._cfg, K.TERMS)
         f_low, f_high = self._feature_bounds  # the safety-margin features' (empty for version 0)
-        extra = f_low.shape[0]
         if self.obs_bounds is not None:
             low, high = self.obs_bounds
-            m0 = low.shape[0] - extra  # the v0 fields, which the kernel writes
-            low, high = low[:m0], high[:m0]
+            m0 = low.shape[0] - f_low.shape[0]  # the v0 fields, which the kernel writes
+            low, high = np.ascontiguousarray(low[:m0], dtype=float), np.ascontiguousarray(high[:m0], dtype=float)
         else:
-            m0, low, high = None, self._no_bounds, self._no_bounds
-        # the proper-response grace per scene: the configured response time, or each scene's tau1 (the array
-        # reset_rows writes in place)
-        grace = self._grace if self._grace is not None else self.tau1
-        step = (code, K.MARGIN_TERMS if code == K.REWARD_MARGIN else K.TERMS,
-                self.reward_fn._w if code != K.REWARD_NONE else self._cfg, float(cfg.a_x_comfort), grace, low, high,
-                m0, extra, f_low, f_high, float(self.config.sensor_range), bool(self.config.v2v),
-                bool(self.config.terminate_on_violation))
-        self._plan = (self.reward_fn, self.obs_bounds, step)
-        return step
-
-    def _scratch(self, n_terms: int) -> tuple:
-        """The core's own per-step arrays for ``arrays=False`` (criteria rows, flags, reward terms,
-        reward, terminated, truncated): overwritten by every such step."""
-        buf = self._scratch_buf
-        if buf is None or buf[2].shape[0] != n_terms:
-            n = self.n
-            buf = self._scratch_buf = (np.empty((K.N_FLOAT + 1, n)), np.empty((K.N_BOOL, n), dtype=bool),
-                                       np.empty((n_terms, n)), np.empty(n), np.empty(n, dtype=bool),
-                                       np.empty(n, dtype=bool))
-        return buf
+            m0, low, high = None, np.zeros(1), np.zeros(1)
+        n = self.n
+        plan = self._plan = _StepPlan(
+            reward_fn=self.reward_fn, obs_bounds=self.obs_bounds, code=code, names=tuple(names), m0=m0,
+            extra=f_low.shape[0], a_comfort=float(self.config.scoring.a_x_comfort),
+            fl=np.zeros((K.N_FLOAT + 1, n)), bo=np.zeros((K.N_BOOL, n), dtype=bool), terms=np.zeros((len(names), n)),
+            reward=np.zeros(n), terminated=np.zeros(n, dtype=bool), truncated=np.zeros(n, dtype=bool),
+            rows=np.empty(n, dtype=np.int64), ended=np.empty(n, dtype=np.int64),
+            fields=np.empty((n, m0 if m0 is not None else 0)))
+        object.__setattr__(plan, "record", K.record_of(K.PLAN_FIELDS, dict(
+            cfg=self._cfg, code=code, a_comfort=plan.a_comfort, weights=np.ascontiguousarray(weights, dtype=float),
+            terminate=bool(self.config.terminate_on_violation), obs_range=float(self.config.sensor_range),
+            v2v=bool(self.config.v2v), low=low, high=high, f_low=f_low, f_high=f_high)))
+        object.__setattr__(plan, "out", K.record_of(K.OUT_FIELDS, {f: getattr(plan, f) for f, _ in K.OUT_FIELDS}))
+        return plan
 
     def modes(self) -> np.ndarray:
         """The surrounding drivers' modes after the last step, ``(n, 2)`` (POV, POV2; -1: none)."""
@@ -522,3 +434,38 @@ class EpisodeBatch:
         sc = self.scenarios[row]
         return EgoTrace(**{key: self._rec[key][row, :k + 1].copy() for key in _RECORD}, set_speed=sc.set_speed,
                         time_gap=sc.time_gap, declared_time_gap=self.declared[row])
+
+
+@dataclass(frozen=True, eq=False)
+class _StepPlan:
+    """What :meth:`EpisodeBatch.step` needs of a reward and an observation's bounds, and the
+    step's output arrays (the core's own): made by :meth:`EpisodeBatch._step_plan`."""
+
+    reward_fn: object  # the reward and bounds it was made for
+    obs_bounds: object
+    code: int  # the built-in reward's code (acc_gym.envs._kernel.REWARD_*)
+    names: tuple  # its terms, the rows of ``terms``
+    m0: int | None  # the observation's v0 fields (None: no observation made)
+    extra: int  # its safety-margin features (0 for version 0)
+    a_comfort: float  # [m/s^2]
+    fl: np.ndarray  # the outputs: the kernels' OUT_FIELDS
+    bo: np.ndarray
+    terms: np.ndarray
+    reward: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    rows: np.ndarray
+    ended: np.ndarray
+    fields: np.ndarray  # (n, m0) float64: version 1's v0 fields before the features (read within the step)
+
+    def fresh_observations(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """A step's observation arrays: the v0 fields as the kernel writes them and the emitted
+        float32 observation, new every step (handed out). Version 0 emits the fields themselves;
+        version 1 the fields (written into the plan's own float64 array) with the features."""
+        if self.m0 is None:
+            empty = np.empty((0, 1), dtype=np.float32)
+            return empty, empty
+        if not self.extra:
+            obs = np.empty((n, self.m0), dtype=np.float32)
+            return obs, obs
+        return self.fields, np.empty((n, self.m0 + self.extra), dtype=np.float32)

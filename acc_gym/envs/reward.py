@@ -143,6 +143,19 @@ class CriteriaReward:
         object.__setattr__(self, "_w", np.array([self.band, self.efficiency, self.speed, self.comfort, self.jerk,
                                                  self.safety, self.collision, self.lag, self.jerk_scale], dtype=float))
 
+    def compiled_terms(self) -> tuple[int, np.ndarray, tuple[str, ...]] | None:
+        """The reward's contract with the environment core: ``(code, weights, term names)`` of
+        the compiled terms the core computes inside its step
+        (:func:`acc_gym.envs._kernel.criteria_reward_rows`), the same numbers as
+        :meth:`__call__`. A subclass that overrides :meth:`__call__` or :meth:`from_criteria`
+        gets None (the core then calls it), unless it overrides this too."""
+        from acc_gym.envs import _kernel as K
+
+        kind = type(self)
+        if kind.__call__ is not CriteriaReward.__call__ or kind.from_criteria is not CriteriaReward.from_criteria:
+            return None
+        return K.REWARD_CRITERIA, self._w, K.TERMS
+
     def __call__(self, s: StepIndicators) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """``(reward, terms)`` for one step of ``n`` scenes, in one compiled pass
         (:func:`acc_gym.envs._kernel.criteria_reward_rows`; missing indicators: :func:`_rows`)."""
@@ -359,9 +372,8 @@ class MarginReward:
         builds from the rows of :func:`acc_gym.envs._kernel.criteria`'s outputs ``fl`` and
         ``bo``, the scenes' step budgets ``steps`` and steps taken ``k`` (arrays; the collision
         term charges ``max(steps - k, 0)`` steps left), in one compiled call
-        (:func:`acc_gym.envs._kernel.margin_reward_rows`). The core takes this path for a
-        ``MarginReward`` (the ``-v1`` ids' default) itself, not for a subclass, which may
-        override :meth:`__call__`."""
+        (:func:`acc_gym.envs._kernel.margin_reward_rows`), which the environment core runs
+        inside its step (:meth:`compiled_terms`)."""
         from acc_gym.envs import _kernel as K
 
         n = fl.shape[1]
@@ -369,6 +381,18 @@ class MarginReward:
         reward = np.empty(n)
         K.margin_reward_rows(fl, bo, set_speed, tau1, steps, k, float(a_comfort), self._w, terms, reward)
         return reward, dict(zip(K.MARGIN_TERMS, terms))
+
+    def compiled_terms(self) -> tuple[int, np.ndarray, tuple[str, ...]] | None:
+        """``(code, weights, term names)`` of the compiled terms the environment core computes
+        inside its step (:func:`acc_gym.envs._kernel.margin_reward_rows`), as
+        :meth:`CriteriaReward.compiled_terms`: None for a subclass that overrides :meth:`__call__`
+        or :meth:`from_criteria` and not this."""
+        from acc_gym.envs import _kernel as K
+
+        kind = type(self)
+        if kind.__call__ is not MarginReward.__call__ or kind.from_criteria is not MarginReward.from_criteria:
+            return None
+        return K.REWARD_MARGIN, self._w, K.MARGIN_TERMS
 
     def __call__(self, s: StepIndicators) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """``(reward, terms)`` for one step of ``n`` scenes, in one compiled pass

@@ -158,23 +158,19 @@ class ACCVectorEnv(VectorEnv):
         a = check_actions(actions, (self.num_envs, 1))[:, 0]
         resetting = np.flatnonzero(self._autoreset)
         active = ~self._autoreset
-        reward, term, trunc, raw = self.core.step(action_to_accel(a, self.config), active=active)
+        reward, term, trunc, final = self.core.step(action_to_accel(a, self.config), active=active)
+        raw = self.core.info()
         reward = np.where(active, reward, 0.0)
         term = term & active
         trunc = trunc & active
         infos: dict = {}
         for key in _STEP_KEYS:
-            infos[key] = np.asarray(raw[key]).copy()
+            infos[key] = raw[key]
             infos["_" + key] = active.copy()
-        infos["modes"] = raw["modes"].copy()
+        infos["modes"] = raw["modes"]
         infos["_modes"] = active.copy()
-        terms = self.core.last_rows[2]  # a built-in reward's terms as one array (rows: names), else None
-        if terms is not None:  # masked in one call
-            infos["rewards"] = dict(zip(self.core.last_term_names, np.where(active, terms, 0.0)))
-        else:
-            infos["rewards"] = {k: np.where(active, v, 0.0) for k, v in raw["rewards"].items()}
+        infos["rewards"] = {k: np.where(active, v, 0.0) for k, v in raw["rewards"].items()}
         infos["_rewards"] = active.copy()
-        final = raw["final"]
         if final:
             done = np.zeros(self.num_envs, dtype=bool)
             done[list(final)] = True

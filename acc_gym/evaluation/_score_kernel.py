@@ -154,14 +154,15 @@ def _smallest(x, n, absent):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, error_model="numpy")
-def score(t, v, a, gap, v_lead, lead_id, a_y, d2, d3, p, tau1, grace, set_speed, out):  # pragma: no cover
+def score(cols, p, tau1, grace, set_speed, out):  # pragma: no cover - compiled
     """Write the episode's score and every value behind it into ``out`` (:data:`N_OUT`).
 
-    ``t`` ... ``v_lead`` the :class:`~acc_gym.evaluation.trace.EgoTrace` columns, ``lead_id``,
-    ``a_y``, ``d2``, ``d3`` its optional ones (empty when absent); ``p`` the config's
-    parameters (:data:`N_PARAMS`, ``P_*`` order); ``tau1`` and ``grace`` [s]; ``set_speed``
-    NaN when the trace has none.
+    ``cols``: the :class:`~acc_gym.evaluation.trace.EgoTrace` columns ``(t, v, a, gap, v_lead,
+    lead_id, a_y, d2, d3)``, the last four its optional ones (empty when absent); ``p`` the
+    config's parameters (:data:`N_PARAMS`, ``P_*`` order); ``tau1`` and ``grace`` [s];
+    ``set_speed`` NaN when the trace has none.
     """
+    t, v, a, gap, v_lead, lead_id, a_y, d2, d3 = cols
     n = t.shape[0]
     b0 = p[P_B0]
     b1 = p[P_B1]
@@ -441,5 +442,5 @@ def score_record(rec, n, p, tau1, grace, set_speed, out):  # pragma: no cover - 
     d3 = rec[9, :n]
     if not _columns_valid(t, v, a, gap, v_lead, rec[5, :n], lead_id, a_y, d2, d3):
         return False
-    score(t, v, a, gap, v_lead, lead_id, a_y, d2, d3, p, tau1, grace, set_speed, out)
+    score((t, v, a, gap, v_lead, lead_id, a_y, d2, d3), p, tau1, grace, set_speed, out)
     return True

@@ -325,12 +325,13 @@ def score_episode(trace: EgoTrace, config: ScoringConfig | None = None) -> Episo
     if not isinstance(cfg, ScoringConfig):
         raise TypeError(f"score_episode's config must be a ScoringConfig, got {type(cfg).__name__}")
     set_speed = trace.set_speed
-    cols = [_EMPTY if c is None else np.ascontiguousarray(c, dtype=np.float64)
-            for c in (trace.t, trace.v, trace.a, trace.gap, trace.v_lead, trace.lead_id, trace.a_y, trace.d2, trace.d3)]
+    cols = tuple(_EMPTY if c is None else np.ascontiguousarray(c, dtype=np.float64)
+                 for c in (trace.t, trace.v, trace.a, trace.gap, trace.v_lead, trace.lead_id, trace.a_y, trace.d2,
+                           trace.d3))
     kp = _kernel_params(cfg)
     tau1, grace = _tau1_grace(trace.time_gap, trace.declared_time_gap, cfg)
     out = np.empty(_K.N_OUT)
-    _K.score(*cols, kp[0], tau1, grace, np.nan if set_speed is None else float(set_speed), out)
+    _K.score(cols, kp[0], tau1, grace, np.nan if set_speed is None else float(set_speed), out)
     return _report(out.tolist(), cfg, kp, tau1)
 
 

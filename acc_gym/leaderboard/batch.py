@@ -33,7 +33,6 @@ from collections.abc import Callable, Hashable
 
 import numpy as np
 
-from acc_gym.envs import _kernel as _K
 from acc_gym.envs.acc_env import action_to_accel
 from acc_gym.envs.core import EpisodeBatch
 from acc_gym.scenarios.spec import Scenario
@@ -96,17 +95,14 @@ class BatchRuns:
         full = np.zeros(self.n)
         full[rows] = actions.astype(float)
         a_des = action_to_accel(full, self.config)
-        _, _, _, info = self.core.step(a_des, self.active.copy())
+        _, _, _, final = self.core.step(a_des, self.active.copy())
         self.obs[:] = self.core.last_obs
         if self._tracks:
             modes = self.core.modes()
             for row, scene in self._tracks.items():
                 scene.snap(modes[row])
-        t = self.core.last_rows[0][_K.F_T]
-        out = {}
-        for row, final in info["final"].items():
-            out[row] = {**final, "t": float(t[row])}
-        return out
+        t = self.core.world.t  # [s] each scene's time after the step
+        return {row: {**info, "t": float(t[row])} for row, info in final.items()}
 
 
 class BadAnswer(ValueError):

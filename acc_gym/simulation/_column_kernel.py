@@ -96,18 +96,22 @@ def observe(x, v, a, lengths, sensor_range, stop, has_stop, out, fault):  # prag
 
 
 @numba.njit(cache=True, error_model="numpy")
-def run(lead_next, dt, lengths, vp, sensor_range, stop, has_stop, kinds, params, model_dt, delays, two,
-        X, V, A, A_DES, GAP, fault):  # pragma: no cover - compiled
+def run(lead_next, dt, column, laws, trace, fault):  # pragma: no cover - compiled
     """Steps ``0 .. T-1`` of a column of baseline models (``T = lead_next.shape[1]``); returns the
     number of steps done: ``T``, or the step at which an observation held a bad value (with
     ``fault = (b, j, f, value)``; rows after it are not written).
 
-    ``lead_next`` ``(B, T)`` is the lead's profile speed at the end of each step [m/s];
-    ``X, V, A, A_DES, GAP`` ``(T+1, B, n)`` the recorded trajectory, row 0 (the start) filled
-    by the caller; ``vp`` ``(B, n, 10)`` the vehicles' parameters (``VehicleParams.as_matrix``);
-    ``stop`` ``(B,)`` the stop positions [m] (``has_stop``). Follower ``j``'s model (slot
-    ``j - 1`` of ``kinds``, ``params`` ``(n-1, B, MAX_PARAMS)``, ``model_dt`` [s], ``delays``
-    [steps], ``two``) is its ``compiled_law()``."""
+    ``lead_next`` ``(B, T)`` is the lead's profile speed at the end of each step [m/s]; ``dt``
+    [s] the step. ``column``: ``(lengths, vp, sensor_range, stop, has_stop)``, the vehicles'
+    lengths [m], their parameters ``(B, n, 10)`` (``VehicleParams.as_matrix``), the sensor
+    range [m] and the stop positions ``(B,)`` [m] (``has_stop``). ``laws``: the followers'
+    ``compiled_law()`` s, ``(kinds, params, model_dt, delays, two)`` (follower ``j`` in slot
+    ``j - 1``; ``params`` ``(n-1, B, MAX_PARAMS)``, ``model_dt`` [s], ``delays`` [steps]).
+    ``trace``: ``(X, V, A, A_DES, GAP)`` ``(T+1, B, n)``, the recorded trajectory, row 0 (the
+    start) filled by the caller."""
+    lengths, vp, sensor_range, stop, has_stop = column
+    kinds, params, model_dt, delays, two = laws
+    X, V, A, A_DES, GAP = trace
     T = lead_next.shape[1]
     B, n = X.shape[1], X.shape[2]
     present = np.ones((B, n), dtype=np.bool_)

@@ -21,13 +21,15 @@ from acc_gym.simulation._world_kernel import move
 
 
 @numba.njit(cache=True, error_model="numpy")
-def coast(steps, ego_a, obs, slot_kind, law_kind, params, two, law_dt, profile, clock, present, x, v, vp, dt, k, y0,
-          y1, t_start, duration, lengths, width, lane_width, collided, sensor_range, xs, vs):  # pragma: no cover
+def coast(steps, ego_a, obs, laws, world, x, v, xs, vs):  # pragma: no cover - compiled
     """Run ``steps`` steps from the state ``x``, ``v`` (``(B, S)``) whose observation array is
-    ``obs``, the ego asking for ``ego_a`` [m/s^2]; ``xs``, ``vs`` ``(steps + 1, B, S)`` get every
-    state's positions and speeds (row 0 the current one), ``clock`` and ``k`` advance by
-    ``steps``, ``collided`` is updated. Returns the last step's ``(F, I, obs)`` for the world to
-    adopt (:meth:`SingleLaneWorld.move_buffers <acc_gym.simulation.single_lane.SingleLaneWorld.move_buffers>`'s
+    ``obs``, the ego asking for ``ego_a`` [m/s^2], the surrounding drivers deciding by ``laws``
+    (:meth:`SlotDrivers.compiled_laws <acc_gym.drivers.slots.SlotDrivers.compiled_laws>`) and
+    the world moving by its ``world`` record (:data:`acc_gym.simulation._world_kernel.WORLD`);
+    ``xs``, ``vs`` ``(steps + 1, B, S)`` get every state's positions and speeds (row 0 the
+    current one), the laws' clocks and the world's ``k`` advance by ``steps``, its collision
+    flags are updated. Returns the last step's ``(F, I, obs)`` for the world to adopt
+    (:meth:`SingleLaneWorld.move_buffers <acc_gym.simulation.single_lane.SingleLaneWorld.move_buffers>`'s
     layout)."""
     B, S = x.shape
     xs[0] = x
@@ -39,12 +41,11 @@ def coast(steps, ego_a, obs, slot_kind, law_kind, params, two, law_dt, profile, 
     ego = np.full(B, ego_a)
     t = np.empty(B)
     for i in range(steps):
-        decide_world(obs, slot_kind, law_kind, params, two, law_dt, profile, clock, ego, a_des)
+        decide_world(obs, laws, ego, a_des)
         F = np.empty((8, B, S))
         I = np.empty((2, B, S), dtype=np.int64)
         nxt = np.empty_like(obs)
-        move(a_des, present, x, v, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
-             sensor_range, F, I, nxt, t)
+        move(a_des, x, v, world, F, I, nxt, t)
         x = F[0]
         v = F[1]
         obs = nxt

@@ -29,6 +29,8 @@ import math
 
 import numba
 import numpy as np
+from numba.core import types
+from numba.experimental import structref
 
 from acc_gym.vehicle import accel_lower_core, accel_upper_core
 
@@ -37,6 +39,49 @@ _lower = numba.njit(cache=True, error_model="numpy")(accel_lower_core)
 
 # rows of observe_all's output, in Observation's field order
 OBS_FIELDS = ("v", "a", "gap", "v_lead", "a_lead", "gap2", "v_lead2", "a_lead2")
+
+
+@structref.register
+class WorldRecordType(types.StructRef):
+    """numba's type of a :data:`WORLD_FIELDS` record (a structref: named fields, one argument)."""
+
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(t)) for name, t in fields)
+
+
+class WorldRecord(structref.StructRefProxy):
+    """What a world's move reads besides its state, as one record for the compiled kernels
+    (made by :meth:`SingleLaneWorld.kernel_record
+    <acc_gym.simulation.single_lane.SingleLaneWorld.kernel_record>`; its arrays are the world's
+    own, shared, so what the world writes in place the kernels see)."""
+
+
+structref.define_boxing(WorldRecordType, WorldRecord)
+_F1, _F2, _F3 = types.float64[::1], types.float64[:, ::1], types.float64[:, :, ::1]
+_B2, _I1 = types.bool_[:, ::1], types.int64[::1]
+# the fields, their types ((B, S) arrays unless noted) and units
+WORLD_FIELDS = (
+    ("present", _B2),  # which vehicles exist
+    ("vp", _F3),  # (B, S, 10) the vehicle parameters in VEHICLE_COLUMNS order
+    ("dt", types.float64),  # [s] the step
+    ("k", _I1),  # (B,) each scene's step count
+    ("y0", _F2), ("y1", _F2), ("t_start", _F2), ("duration", _F2),  # the lateral plan [m], [m], [s], [s]
+    ("lengths", _F2),  # [m]
+    ("width", _F2),  # [m]
+    ("lane_width", types.float64),  # [m]
+    ("collided", _B2),  # sticky: ever gap <= 0
+    ("sensor_range", types.float64),  # [m] vehicles further ahead are not seen
+)
+WORLD = WorldRecordType(list(WORLD_FIELDS))
+
+
+@numba.njit(cache=True)
+def make_world(f):  # pragma: no cover - compiled
+    """A :data:`WORLD` record of the values ``f``, in :data:`WORLD_FIELDS` order."""
+    r = structref.new(WORLD)
+    r.present, r.vp, r.dt, r.k, r.y0, r.y1, r.t_start = f[0], f[1], f[2], f[3], f[4], f[5], f[6]
+    r.duration, r.lengths, r.width, r.lane_width, r.collided, r.sensor_range = f[7], f[8], f[9], f[10], f[11], f[12]
+    return r
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -71,10 +116,13 @@ def advance(a_des, present, x, v, vp, dt, x_out, v_out, a_out, a_des_out):  # pr
 
 
 @numba.njit(cache=True, error_model="numpy")
-def refresh(t, y0, y1, t_start, duration, x, lengths, present, width, lane_width,
-            y, a_y, lead, gap, lead2, gap2, collided, mark):  # pragma: no cover - compiled
-    """Lateral positions at each scene's time ``t``, then neighbours; with ``mark``, set the
-    sticky collision flag of every vehicle whose gap is <= 0 (after a step, not at a start)."""
+def refresh(t, world, x, y, a_y, lead, gap, lead2, gap2, mark):  # pragma: no cover - compiled
+    """Lateral positions at each scene's time ``t`` (by ``world``'s lateral plan, a
+    :data:`WORLD` record), then neighbours of the positions ``x`` into ``lead``, ``gap``,
+    ``lead2``, ``gap2``; with ``mark``, set the sticky collision flag (``world.collided``) of
+    every vehicle whose gap is <= 0 (after a step, not at a start)."""
+    y0, y1, t_start, duration = world.y0, world.y1, world.t_start, world.duration
+    lengths, present, width, lane_width, collided = world.lengths, world.present, world.width, world.lane_width, world.collided
     B, S = x.shape
     for b in range(B):
         for s in range(S):
@@ -184,30 +232,38 @@ def put_slots(out, a_des):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, error_model="numpy")
-def move(a_des, present, x, v, vp, dt, k, y0, y1, t_start, duration, lengths, width, lane_width, collided,
-         sensor_range, F, I, obs, t):  # pragma: no cover - compiled
+def move(a_des, x, v, world, F, I, obs, t):  # pragma: no cover - compiled
     """:meth:`~acc_gym.simulation.single_lane.SingleLaneWorld.move` and the next state's
-    :func:`observe_all` in one call: :func:`advance`, ``k += 1``, the times ``t = k dt``,
-    :func:`refresh` with collision marking, :func:`mark_passed`. Outputs in ``F`` (x, v, a, a_des, y, a_y, gap,
-    gap2), ``I`` (lead, lead2), ``obs`` and ``t`` (see ``SingleLaneWorld.move_buffers``)."""
-    advance(a_des, present, x, v, vp, dt, F[0], F[1], F[2], F[3])
+    :func:`observe_all` in one call, from the state ``x``, ``v`` and the rest of the world
+    (``world``, a :data:`WORLD` record): :func:`advance`, ``k += 1``, the times ``t = k dt``,
+    :func:`refresh` with collision marking, :func:`mark_passed`. Outputs in ``F`` (x, v, a,
+    a_des, y, a_y, gap, gap2), ``I`` (lead, lead2), ``obs`` and ``t`` (see
+    ``SingleLaneWorld.move_buffers``)."""
+    w = world
+    advance(a_des, w.present, x, v, w.vp, w.dt, F[0], F[1], F[2], F[3])
+    k = w.k
     for b in range(k.shape[0]):
         k[b] += 1
-        t[b] = k[b] * dt
-    refresh(t, y0, y1, t_start, duration, F[0], lengths, present, width, lane_width, F[4], F[5], I[0], F[6], I[1],
-            F[7], collided, True)
-    mark_passed(x, F[0], lengths, present, F[4], width, lane_width, I[0], F[6], collided)
-    observe_all(F[1], F[2], I[0], F[6], I[1], F[7], sensor_range, obs)
+        t[b] = k[b] * w.dt
+    refresh(t, w, F[0], F[4], F[5], I[0], F[6], I[1], F[7], True)
+    mark_passed(x, F[0], w.lengths, w.present, F[4], w.width, w.lane_width, I[0], F[6], w.collided)
+    observe_all(F[1], F[2], I[0], F[6], I[1], F[7], w.sensor_range, obs)
 
 
 @numba.njit(cache=True, error_model="numpy")
-def place(rows, x0, v0, a0, present, lengths, width, y0, y1, t_start, duration,
-          X0, V0, A0, PRESENT, LENGTHS, WIDTH, LY0, LY1, LT, LD, k, x, v, a, a_des, collided):  # pragma: no cover
+def place(rows, new, initial, world, x, v, a, a_des):  # pragma: no cover - compiled
     """Start scenes ``rows`` afresh (the body of ``SingleLaneWorld.reset_rows`` for inputs
-    already shaped ``(len(rows), S)``): first checks every initial position, speed,
-    acceleration, length and width is finite and every speed >= 0 and returns False,
-    changing nothing, if not (the caller then takes the reference path, which names the
-    bad value); else writes the rows of the world's arrays (capitals) and returns True."""
+    already shaped ``(len(rows), S)``): ``new`` the rows' ``(x0, v0, a0, present, lengths,
+    width, y0, y1, t_start, duration)``. First checks every initial position, speed,
+    acceleration, length and width is finite and every speed >= 0 and returns False, changing
+    nothing, if not (the caller then takes the reference path, which names the bad value);
+    else writes the scenes' rows of the world's initial state ``initial`` (``(x0, v0, a0)``),
+    of its ``world`` record (presence, sizes, lateral plan, clocks, collision flags) and of the
+    state ``x``, ``v``, ``a``, ``a_des``, and returns True."""
+    x0, v0, a0, present, lengths, width, y0, y1, t_start, duration = new
+    X0, V0, A0 = initial
+    PRESENT, LENGTHS, WIDTH, k, collided = world.present, world.lengths, world.width, world.k, world.collided
+    LY0, LY1, LT, LD = world.y0, world.y1, world.t_start, world.duration
     m, S = x0.shape
     for r in range(m):
         for s in range(S):

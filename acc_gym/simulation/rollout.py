@@ -157,11 +157,10 @@ def simulate_column(lead: SpeedProfile, followers, x0, v0, *, duration: float | 
     laws = _compiled_laws(followers)
     fault = np.zeros(4)  # column, vehicle, field (index in Observation) and value of a bad observation value
     if laws is not None:
-        kinds, params, model_dt, delays, two = laws
-        done = _C.run(np.ascontiguousarray(prof_next, dtype=float), float(dt), lengths,
-                      np.ascontiguousarray(np.broadcast_to(veh.as_matrix(n), (B, n, 10))), float(sensor_range),
-                      stop_at, stop is not None, kinds, params, model_dt, delays, two,
-                      out["x"], out["v"], out["a"], out["a_des"], out["gap"], fault)
+        column = (lengths, np.ascontiguousarray(np.broadcast_to(veh.as_matrix(n), (B, n, 10))), float(sensor_range),
+                  stop_at, stop is not None)
+        done = _C.run(np.ascontiguousarray(prof_next, dtype=float), float(dt), column, tuple(laws),
+                      (out["x"], out["v"], out["a"], out["a_des"], out["gap"]), fault)
         if done < T:
             _raise_bad_value(done, fault, out, dt)
     else:

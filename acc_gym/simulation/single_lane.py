@@ -32,9 +32,11 @@ never anyone's target and do not move.
 from __future__ import annotations
 
 import math
+import operator
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba.core import types as _types
 
 from acc_gym._validation import check_finite, check_nonnegative, check_positive
 from acc_gym.drivers.base import Observation
@@ -214,6 +216,7 @@ class SingleLaneWorld:
         self.dt = float(dt)
         self.sensor_range = float(sensor_range)
         self._buffer_sets = None  # reused_buffers()'s two sets, made on first use
+        self._kernel_record = None  # kernel_record()'s (the arrays it holds, the record), made on first use
         self.reset()
         self._check_apart()
 
@@ -248,6 +251,36 @@ class SingleLaneWorld:
                 model.reset()
         self._refresh(mark=False)
 
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["_kernel_record"] = None  # a compiled record: made again after unpickling
+        return state
+
+    def kernel_record(self):
+        """What the compiled move reads besides the state (presence, vehicle parameters, clocks,
+        lateral plan, sizes, collision flags, the step, lane width and sensor range), as one
+        :data:`~acc_gym.simulation._world_kernel.WORLD` record holding the world's own arrays:
+        made again when one of these attributes has been given another array or value since."""
+        lat = self.lateral
+        fields = (self.present, self._vp, self.dt, self.k, lat.y0, lat.y1, lat.t_start, lat.duration,
+                  self.lengths, self.width, self.road, self.collided, self.sensor_range)
+        made = self._kernel_record
+        if made is not None and all(map(operator.is_, fields, made[0])):
+            return made[1]
+        # the kernels write k and collided: an array given in another layout or type is replaced by one the
+        # record shares; the arrays they only read may be copies
+        for name, dtype in (("k", np.int64), ("collided", np.bool_)):
+            value = getattr(self, name)
+            own = np.ascontiguousarray(value, dtype=dtype)
+            if own is not value:
+                setattr(self, name, own)
+        fields = fields[:3] + (self.k,) + fields[4:11] + (self.collided, self.sensor_range)
+        values = [np.ascontiguousarray(v, dtype=t.dtype.name) if isinstance(t, _types.Array) else v
+                  for v, (_, t) in zip(fields, _K.WORLD_FIELDS)]
+        values[10] = float(self.road.lane_width)
+        self._kernel_record = (fields, _K.make_world(tuple(values)))
+        return self._kernel_record[1]
+
     @property
     def t(self) -> np.ndarray:
         """Each scene's time [s], ``(B,)``."""
@@ -260,9 +293,7 @@ class SingleLaneWorld:
         B, S = self.B, self.S
         self.y, self.a_y, gap, gap2 = np.empty((4, B, S))  # fresh arrays (one allocation) every state
         lead, lead2 = np.empty((2, B, S), dtype=np.int64)
-        lat = self.lateral
-        _K.refresh(self.t, lat.y0, lat.y1, lat.t_start, lat.duration, self.x, self.lengths, self.present, self.width,
-                   float(self.road.lane_width), self.y, self.a_y, lead, gap, lead2, gap2, self.collided, mark)
+        _K.refresh(self.t, self.kernel_record(), self.x, self.y, self.a_y, lead, gap, lead2, gap2, mark)
         self.neighbours = Neighbours(lead=lead, gap=gap, lead2=lead2, gap2=gap2)
         self._obs = None  # observations of this state, made on first use
 
@@ -284,14 +315,14 @@ class SingleLaneWorld:
         if (lateral is not None and present is not None and type(present) is np.ndarray and present.shape == shape
                 and present.dtype == np.bool_ and all(type(arg) is np.ndarray and arg.shape == shape
                                                      and arg.dtype == np.float64 for arg in args if arg is not None)):
-            lat, plan = self.lateral, lateral
+            plan = lateral
             plan_arrays = [a if type(a) is np.ndarray and a.shape == shape else np.broadcast_to(a, shape)
                            for a in (plan.y0, plan.y1, plan.t_start, plan.duration)]
             zeros = np.zeros(shape)
-            if _K.place(rows, x0, v0, zeros if a0 is None else a0, present,
-                        self.lengths[rows] if lengths is None else lengths, self.width[rows] if width is None else width,
-                        *plan_arrays, self.x0, self.v0, self.a0, self.present, self.lengths, self.width, lat.y0,
-                        lat.y1, lat.t_start, lat.duration, self.k, self.x, self.v, self.a, self.a_des, self.collided):
+            new = (x0, v0, zeros if a0 is None else a0, present, self.lengths[rows] if lengths is None else lengths,
+                   self.width[rows] if width is None else width, *plan_arrays)
+            if _K.place(rows, new, (self.x0, self.v0, self.a0), self.kernel_record(), self.x, self.v, self.a,
+                        self.a_des):
                 self._refresh(mark=False)
                 if _K.first_overlap(rows, self.x, self.y, self.present, self.width, self.lengths,
                                     float(self.road.lane_width))[0] >= 0:
@@ -384,11 +415,8 @@ class SingleLaneWorld:
             from acc_gym.simulation import _rollout_kernel  # late: it joins the drivers' kernels
 
             self.observation_array(0)
-            lat = self.lateral
-            F, I, obs = _rollout_kernel.coast(
-                steps, ego, self._obs.copy(), *laws, self.present, self.x, self.v, self._vp, self.dt, self.k, lat.y0,
-                lat.y1, lat.t_start, lat.duration, self.lengths, self.width, float(self.road.lane_width), self.collided,
-                self.sensor_range, xs, vs)
+            F, I, obs = _rollout_kernel.coast(steps, ego, self._obs.copy(), laws, self.kernel_record(), self.x, self.v,
+                                              xs, vs)
             self.adopt(F, I, obs)
             return xs, vs
         xs[0], vs[0] = self.x, self.v
@@ -401,28 +429,29 @@ class SingleLaneWorld:
         """Phase one of :meth:`step`: every model's desired acceleration ``(B, S)`` [m/s^2]
         from the current snapshot (slot 0 ``ego_a_des`` when given); nothing moves."""
         a_des = np.zeros((self.B, self.S))
-        joint = getattr(self, "joint", None)
-        if joint is not None:  # every surrounding slot in one call: rows (s - 1) B + b
-            self.observation_array(0)  # makes every slot's observations of this state, (S, 8, B)
-            joint.act_world(self._obs, a_des)
-        for s, model in enumerate(self.drivers):
-            if joint is not None and s > 0:
-                break
-            if s == 0 and ego_a_des is not None:
-                ego = ego_a_des
-                if type(ego) is float and math.isfinite(ego):  # a plain number (pre-simulations pass 0.0)
-                    a_des[:, 0] = ego
-                    continue
+        if ego_a_des is not None:  # first: a bad command raises before any driver has decided (or ticked)
+            ego = ego_a_des
+            if type(ego) is float and math.isfinite(ego):  # a plain number (pre-simulations pass 0.0)
+                a_des[:, 0] = ego
+            else:
                 if not (type(ego) is np.ndarray and ego.shape == (self.B,) and ego.dtype == np.float64):
                     ego = np.broadcast_to(np.asarray(ego_a_des, dtype=float), (self.B,))
                 if not (math.isfinite(ego[0]) if self.B == 1 else np.isfinite(ego).all()):
                     check_finite("ego_a_des", ego)  # raises, naming the value
                 a_des[:, 0] = ego
-            elif model is not None:
-                act_rows = getattr(model, "act_rows", None)  # drivers that read the observation rows directly
-                a_des[:, s] = act_rows(self.observation_array(s)) if act_rows is not None else model.act(self.observe(s))
-            elif s == 0:
-                raise ValueError("the ego has no model: pass ego_a_des to step()")
+        elif self.drivers[0] is None:
+            raise ValueError("the ego has no model: pass ego_a_des to step()")
+        joint = getattr(self, "joint", None)
+        if joint is not None:  # every surrounding slot in one call: rows (s - 1) B + b
+            self.observation_array(0)  # makes every slot's observations of this state, (S, 8, B)
+            joint.act_world(self._obs, a_des)
+        for s, model in enumerate(self.drivers):
+            if (s == 0 and ego_a_des is not None) or model is None:
+                continue
+            if joint is not None and s > 0:
+                break
+            act_rows = getattr(model, "act_rows", None)  # drivers that read the observation rows directly
+            a_des[:, s] = act_rows(self.observation_array(s)) if act_rows is not None else model.act(self.observe(s))
         return a_des
 
     def move(self, a_des: np.ndarray) -> None:
@@ -432,10 +461,7 @@ class SingleLaneWorld:
         (:func:`acc_gym.simulation._world_kernel.move`, which also makes the new state's
         observations)."""
         F, I, obs = self.move_buffers()
-        lat = self.lateral
-        _K.move(a_des, self.present, self.x, self.v, self._vp, self.dt, self.k, lat.y0, lat.y1, lat.t_start,
-                lat.duration, self.lengths, self.width, float(self.road.lane_width), self.collided,
-                self.sensor_range, F, I, obs, np.empty(self.B))
+        _K.move(a_des, self.x, self.v, self.kernel_record(), F, I, obs, np.empty(self.B))
         self.adopt(F, I, obs)
 
     def move_buffers(self) -> tuple:

@@ -44,3 +44,15 @@ def indicators(fl, bo, set_speed, tau1, steps_left=None, a_comfort=2.5):
     """The :class:`StepIndicators` of kernel rows ``(fl, bo)``, built as the environment core
     builds them for a reward that takes the indicators path (:meth:`StepIndicators.from_rows`)."""
     return StepIndicators.from_rows(fl, bo, set_speed, tau1, a_comfort, steps_left=steps_left)
+
+
+def scenes(n, **arrays):
+    """A :data:`acc_gym.envs._kernel.SCENES` record of ``n`` scenes holding ``arrays`` (shared,
+    so what a kernel writes into them is seen here), the other fields filled with placeholders."""
+    from acc_gym.envs import _kernel as K
+
+    values = {name: (np.zeros((len(K.RECORD), n, 1)) if name == "rec" else
+                     np.zeros(n, dtype=np.int64) if name in ("lead_prev", "steps") else np.ones(n))
+              for name, _ in K.SCENE_FIELDS}
+    values.update(arrays)
+    return K.record_of(K.SCENE_FIELDS, values)

@@ -1,14 +1,16 @@
-"""The environment's fast paths equal the slow paths they short-cut, bit for bit.
+"""The environment step's compiled parts against numpy oracles, and its contracts.
 
 * :func:`acc_gym.envs._kernel.action_to_accel` (behind :func:`acc_gym.envs.acc_env.action_to_accel`)
   equals a numpy formulation;
-* :meth:`CriteriaReward.from_criteria` (the core's path for the default reward) and
-  :meth:`CriteriaReward.__call__` on the :class:`StepIndicators` built from the same rows
-  equal the numpy oracle (``reward_oracle.py``);
-* :func:`acc_gym.envs._kernel.settle` equals the numpy bookkeeping it replaced (termination,
-  truncation, returns, ended scenes);
-* end to end, an environment with the default reward gives what one with an equal reward
-  object that takes the :class:`StepIndicators` path gives.
+* :meth:`CriteriaReward.from_criteria` and :meth:`CriteriaReward.__call__` on the
+  :class:`StepIndicators` built from the same rows equal the numpy oracle (``reward_oracle.py``);
+* :func:`acc_gym.envs._kernel.settle` equals the numpy bookkeeping (termination, truncation,
+  returns, ended scenes);
+* end to end, an environment with the default reward (its compiled terms inside the step)
+  gives what one with a reward object the core calls on the :class:`StepIndicators` gives;
+  a subclass that overrides ``__call__`` is called;
+* the step's arrays handed out stay as they were; a bad ego command raises before anything
+  moves.
 """
 
 from __future__ import annotations
@@ -22,7 +24,6 @@ from acc_gym.envs import _kernel as K
 from acc_gym.envs.acc_env import action_to_accel
 from acc_gym.envs.config import EnvConfig
 from acc_gym.envs.reward import CriteriaReward
-from world_oracle import move_by_parts  # tests/world_oracle.py
 from kernel_rows import indicators, random_rows, rollout  # tests/envs/kernel_rows.py
 from reward_oracle import criteria_oracle  # tests/envs/reward_oracle.py
 
@@ -112,118 +113,27 @@ def test_default_reward_fast_path_equals_the_indicators_path_end_to_end():
             assert a[4].get("episode_return") == b[4].get("episode_return")
 
 
-def reference_step(core, a_des, active=None):
-    """:meth:`EpisodeBatch.step` as separate calls (the world's own step, then the criteria,
-    reward, settle, record and observe kernels one by one): what the fused kernels replace."""
-    w = core.world
-    a_prev = w.a[:, 0].copy()
-    move_by_parts(w, w.decide(a_des))  # the world's separate kernels (advance, then refresh)
-    t = w.t
-    cfg = core.config.scoring
-    grace = core._grace if core._grace is not None else core.tau1
-    fl = np.empty((K.N_FLOAT, core.n))
-    bo = np.empty((K.N_BOOL, core.n), dtype=bool)
-    nb = w.neighbours
-    K.criteria(t, w.v, w.a, nb.lead, nb.gap, a_prev, w.dt, core.set_speed, core.tau1, grace, core._cfg,
-               core.lead_prev, core.last_change, core.neg_since, fl, bo)
-    reward, terms = core.reward_fn.from_criteria(fl, bo, core.set_speed, core.tau1, cfg.a_x_comfort)
-    active = ~core.done if active is None else active
-    term, trunc = np.empty(core.n, dtype=bool), np.empty(core.n, dtype=bool)
-    rows, ended = np.empty(core.n, dtype=np.int64), np.empty(core.n, dtype=np.int64)
-    n_rows, n_ended = K.settle(active, reward, bo, w.k, core.steps, core.config.terminate_on_violation,
-                               core.episode_return, term, trunc, rows, ended)
-    core._record(rows[:n_rows])
-    obs = core.observe(*core.obs_bounds, dtype=np.float32)
-    final = {int(r): core._final(int(r)) for r in ended[:n_ended]}
-    core.done[ended[:n_ended]] = True
-    return obs, reward, term, trunc, {"t": t, "q": fl[K.F_Q], "gap_safe": fl[K.F_GS], "a_applied": fl[K.F_A],
-                                      "violation": bo[K.B_VIOLATION], "rewards": terms, "final": final}
+class CallOverride(CriteriaReward):
+    """A subclass that changes the reward: the core must call it, not the compiled terms."""
+
+    def __call__(self, indicators):
+        reward, terms = super().__call__(indicators)
+        return reward + 1.0, terms
 
 
-@pytest.mark.parametrize("env_id, settings, drivers_in_kernel", [
-    ("acc_gym/SingleLane-v0", {}, False),  # MPC drivers: they decide in Python, then _kernel.step_finish
-    ("acc_gym/NCAP-v0", {}, True),  # the targets' profiles: _kernel.laws_step_finish decides and steps
-    ("acc_gym/SingleLane-v0", {"drivers": "idm"}, True),  # baseline models: likewise
-], ids=["singlelane-mpc", "ncap-profiles", "singlelane-idm"])
-def test_fused_core_step_equals_the_separate_kernels(env_id, settings, drivers_in_kernel):
-    """The core's step in one compiled call (``_kernel.step_finish`` after the drivers decided,
-    or ``_kernel.laws_step_finish`` with the drivers' laws inside it) equals the world's step
-    (its ``decide``, then its separate kernels) followed by the separate criteria, reward,
-    settle, record and observe kernels, bit for bit, over episodes and restarts of 6 scenes."""
-    cores = [gymnasium.make_vec(env_id, num_envs=6, vectorization_mode="vector_entry_point",
-                                **settings).unwrapped.core for _ in range(2)]
-    rngs = [[np.random.default_rng(s) for s in range(6)] for _ in range(2)]
-    for core, r in zip(cores, rngs):
-        core.reset_rows(range(6), r)
-    fused, ref = cores
-    act = np.random.default_rng(9)
-    n_final = 0
-    for _ in range(150):
-        a = act.uniform(-6.0, 3.0, 6)
-        assert (fused.world.joint.compiled_laws() is not None) == drivers_in_kernel  # the path under test
-        r1, te1, tr1, i1 = fused.step(a)
-        o2, r2, te2, tr2, i2 = reference_step(ref, a)
-        assert np.array_equal(fused.last_obs, o2)
-        assert np.array_equal(r1, r2) and np.array_equal(te1, te2) and np.array_equal(tr1, tr2)
-        for key in ("t", "q", "gap_safe", "a_applied", "violation"):
-            assert np.array_equal(i1[key], i2[key]), key
-        assert all(np.array_equal(i1["rewards"][k], i2["rewards"][k]) for k in K.TERMS)
-        assert i1["final"] == i2["final"]
-        n_final += len(i1["final"])
-        assert np.array_equal(fused._rec_arr, ref._rec_arr)
-        for core, r in zip(cores, rngs):
-            ended = np.flatnonzero(core.done)
-            if ended.size:
-                core.reset_rows(ended, [r[i] for i in ended])
-    assert n_final >= 6  # episodes ended (and restarted) along the way
-
-
-@pytest.mark.parametrize("env_id, settings", [
-    ("acc_gym/SingleLane-v1", {"drivers": "idm"}), ("acc_gym/SingleLane-v0", {"drivers": "idm"}),
-    ("acc_gym/NCAP-v1", {}), ("acc_gym/CarFollowing-v0", {}),
-], ids=["singlelane-v1-idm", "singlelane-v0-idm", "ncap-v1", "carfollowing-v0"])
-def test_the_single_envs_prepared_step_equals_the_assembled_one(env_id, settings):
-    """Once an episode's step has taken the drivers-inside call, the single env reuses its
-    argument list with the per-step entries replaced (``EpisodeBatch._step_prepared``): over
-    episodes, resets, a pickled copy and a NaN action, everything equals an env whose list is
-    assembled afresh every step -- observations, rewards, flags, infos, records -- bit for bit."""
-    import pickle
-
-    envs = [gymnasium.make(env_id, **settings) for _ in range(2)]
-    fast, ref = (e.unwrapped for e in envs)
-    rng = np.random.default_rng(4)
-    for e in envs:
-        e.reset(seed=11)
-    used = 0
-    for k in range(400):
-        if k == 150:
-            envs[0] = pickle.loads(pickle.dumps(envs[0]))
-            fast = envs[0].unwrapped
-        a = rng.uniform(-1.0, 1.0, 1).astype(np.float32)
-        ref.core._prepared = None  # the reference assembles its list every step
-        out = [e.step(a) for e in envs]
-        used += fast.core._prepared is not None
-        (o1, r1, te1, tr1, i1), (o2, r2, te2, tr2, i2) = out
-        assert np.array_equal(o1, o2) and r1 == r2 and te1 == te2 and tr1 == tr2, k
-        assert i1.keys() == i2.keys() and all(np.array_equal(i1[key], i2[key]) for key in i1 if key != "report")
-        assert i1.get("report") == i2.get("report")
-        assert np.array_equal(fast.core._rec_arr, ref.core._rec_arr)
-        if te1 or tr1:
-            for e in envs:
-                e.reset()
-    assert used > 300  # the prepared list served most steps
-    envs[0].reset(seed=3)
-    envs[0].step(np.zeros(1, dtype=np.float32))
-    k = fast.core.world.k.copy()
-    assert fast.core._prepared is not None
-    with pytest.raises(ValueError, match="ego_a_des"):  # named, and nothing moved
-        fast.core.step(np.array([np.nan]), arrays=False)
-    assert np.array_equal(fast.core.world.k, k)
-    fast.core.slots[0].assign(0, None)  # a driver changed by hand mid-episode: the list is not reused
-    calls = []
-    fast.core._step_prepared = lambda *args: calls.append(args)
-    fast.core.step(np.zeros(1), arrays=False)
-    assert not calls and fast.core._prepared is not None  # assembled again, and kept for the next steps
+def test_a_reward_subclass_that_overrides_call_is_called():
+    """``compiled_terms`` is the rewards' contract with the core: the built-in rewards offer
+    their compiled terms, a subclass overriding ``__call__`` does not (and is called: its
+    rewards are the default's plus one, step for step); a subclass that changes nothing keeps
+    the compiled terms."""
+    assert CriteriaReward().compiled_terms()[0] == K.REWARD_CRITERIA
+    assert CallOverride().compiled_terms() is None
+    assert type("Same", (CriteriaReward,), {})().compiled_terms()[0] == K.REWARD_CRITERIA
+    base, over = (rollout("acc_gym/SingleLane-v0", fn, 120) for fn in (None, CallOverride()))
+    steps = [(a, b) for a, b in zip(base, over) if len(a) == 5]
+    assert len(steps) >= 100
+    for a, b in steps:
+        assert b[1] == a[1] + 1.0 and b[4]["rewards"] == a[4]["rewards"]
 
 
 def test_scenario_sampler_draws_the_index_rng_choice_draws():
@@ -276,8 +186,8 @@ def test_single_env_action_fast_path_maps_like_the_kernel():
 
 
 def test_arrays_handed_out_are_not_overwritten_by_the_next_step():
-    """The single env's core reuses its per-step arrays (``step(arrays=False)``), so what it
-    hands out must be copies or fresh: a vector env's rewards, flags and info arrays and a
+    """The core reuses its per-step arrays (``EpisodeBatch.step``), so what the envs hand out
+    must be copies or fresh: a vector env's rewards, flags and info arrays and a
     single env's observations and infos, kept over further steps, still hold their step's
     values (and a single env's keep equalling a fresh single env's of the same step)."""
     vec = gymnasium.make_vec("acc_gym/SingleLane-v1", num_envs=3, vectorization_mode="vector_entry_point",
@@ -302,10 +212,10 @@ def test_arrays_handed_out_are_not_overwritten_by_the_next_step():
     assert len({id(obs) for obs, *_ in steps}) == len(steps)  # a fresh observation each step
 
 
-def test_a_nan_ego_acceleration_stops_the_fused_step_before_anything_moves():
-    """With the drivers' laws inside the step's compiled call, a non-finite desired ego
-    acceleration raises the world's error naming it, and leaves the scenes as they were
-    (positions, speeds, step counters, the drivers' clocks)."""
+def test_a_nan_ego_acceleration_stops_the_step_before_anything_moves():
+    """With drivers whose laws are one compiled call, a non-finite desired ego acceleration
+    raises the world's error naming it, and leaves the scenes as they were (positions, speeds,
+    step counters, the drivers' clocks)."""
     core = gymnasium.make_vec("acc_gym/SingleLane-v0", num_envs=3, vectorization_mode="vector_entry_point",
                               drivers="idm").unwrapped.core
     core.reset_rows(range(3), [np.random.default_rng(s) for s in range(3)])

@@ -26,6 +26,7 @@ from acc_gym.envs import _kernel as K
 from acc_gym.envs.reward import CriteriaReward, StepIndicators
 from acc_gym.evaluation.indicators import efficiency_u, gap_safe, in_band, safety_q
 from acc_gym.evaluation.scoring import ScoringConfig
+from kernel_rows import scenes  # tests/envs/kernel_rows.py
 from reward_oracle import criteria_oracle  # tests/envs/reward_oracle.py
 from score_oracle import _after_transients, _proper_response_violations  # tests/score_oracle.py
 
@@ -276,8 +277,8 @@ def test_criteria_equal_the_numpy_reference_over_random_sequences(cfg):
             t = np.full(n, k * DT_SEQ)
             fl = np.empty((K.N_FLOAT, n))
             bo = np.empty((K.N_BOOL, n), dtype=bool)
-            K.criteria(t, v[k], a[k], lead[k], gap[k], a[k - 1, :, 0].copy(), DT_SEQ, set_speed, tau1, grace,
-                       cfg_array(cfg), state_k["lead_prev"], state_k["last_change"], state_k["neg_since"], fl, bo)
+            K.criteria(t, v[k], a[k], lead[k], gap[k], a[k - 1, :, 0].copy(), DT_SEQ,
+                       scenes(n, set_speed=set_speed, tau1=tau1, grace=grace, **state_k), cfg_array(cfg), fl, bo)
             rfl, rbo = reference_criteria(t, v[k], a[k], lead[k], gap[k], a[k - 1, :, 0], DT_SEQ, set_speed, tau1, grace,
                                           cfg, state_r)
             for row, value in rfl.items():
@@ -335,8 +336,8 @@ def test_criteria_by_hand():
     tau1 = np.full(n, 1.5)
     state = dict(lead_prev=np.array([1, 1, 1, -1]), last_change=np.zeros(n), neg_since=np.array([np.nan, 0.0, 0.0, 0.0]))
     fl, bo = np.empty((K.N_FLOAT, n)), np.empty((K.N_BOOL, n), dtype=bool)
-    K.criteria(np.full(n, 6.0), v, a, lead, gap, np.array([0.0, -1.0, 1.5, 0.0]), DT, np.full(n, 25.0), tau1, tau1,
-               cfg_array(cfg), state["lead_prev"], state["last_change"], state["neg_since"], fl, bo)
+    K.criteria(np.full(n, 6.0), v, a, lead, gap, np.array([0.0, -1.0, 1.5, 0.0]), DT,
+               scenes(n, set_speed=np.full(n, 25.0), tau1=tau1, grace=tau1, **state), cfg_array(cfg), fl, bo)
     # scene 0: Gapsafe = 20 * 1.5 = 30, Q = 2 in (0, 6): a following sample in the band, u = 2 / 6
     assert fl[K.F_GS, 0] == 30.0 and fl[K.F_Q, 0] == 2.0 and fl[K.F_U, 0] == pytest.approx(1 / 3)
     assert bo[[K.B_HAS, K.B_IN_BAND, K.B_FOLLOWING, K.B_FOLLOWABLE], 0].all() and not bo[K.B_FREE, 0]
@@ -391,7 +392,8 @@ def test_record_called_directly():
     width0, lane_width, n_lanes = rng.uniform(1.5, 2.5, n), rng.uniform(3.0, 4.0, n), rng.integers(1, 4, n) * 1.0
     rows = np.array([0, 2, 3, 7])
     rec = np.full((len(K.RECORD), n, steps), -7.0)
-    K.record(rows, k, t, v, a, lead, gap, a_y, y, width0, lane_width, n_lanes, rec)
+    K.record(rows, k, t, (v, a, lead, gap, a_y, y), scenes(n, ego_width=width0, lane_width=lane_width, n_lanes=n_lanes,
+                                                           rec=rec))
     expect = np.full_like(rec, -7.0)
     for i in rows:
         j = lead[i, 0]

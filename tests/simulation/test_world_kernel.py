@@ -477,10 +477,7 @@ def test_fused_move_equals_move(seed):
         a_all = fused.decide(a[:, 0])
         F, I, obs = fused.move_buffers()
         t = np.empty(B)
-        lat = fused.lateral
-        K.move(a_all, fused.present, fused.x, fused.v, fused._vp, fused.dt, fused.k, lat.y0, lat.y1, lat.t_start,
-               lat.duration, fused.lengths, fused.width, float(fused.road.lane_width), fused.collided,
-               fused.sensor_range, F, I, obs, t)
+        K.move(a_all, fused.x, fused.v, fused.kernel_record(), F, I, obs, t)
         fused.adopt(F, I, obs)
         assert np.array_equal(t, ref.t)
         for name in ("x", "v", "a", "y", "a_y", "k", "collided"):
@@ -520,10 +517,7 @@ def test_reused_buffers_leave_the_state_fresh_buffers_leave(seed):
         buf = reused.reused_buffers()
         assert reused.x.base is not buf.F and buf is not last
         buf.obs.setflags(write=True)
-        lat = reused.lateral
-        K.move(a_all, reused.present, reused.x, reused.v, reused._vp, reused.dt, reused.k, lat.y0, lat.y1,
-               lat.t_start, lat.duration, reused.lengths, reused.width, float(reused.road.lane_width),
-               reused.collided, reused.sensor_range, buf.F, buf.I, buf.obs, np.empty(B))
+        K.move(a_all, reused.x, reused.v, reused.kernel_record(), buf.F, buf.I, buf.obs, np.empty(B))
         reused.adopt_buffers(buf)
         last = buf
         assert reused.x.base is buf.F and reused.neighbours.gap.base is buf.F
