@@ -9,9 +9,10 @@ the model has a reaction delay, as in the models' ``_law``. Parameters are float
 one value per row or one value for all rows (:func:`_at`).
 
 Each law is written once, as a function of one vehicle's numbers (``idm``, ``gipps``, ...);
-the ``*_rows`` kernels run it over a batch's rows (a model's ``act``), and :func:`law` picks
-it by the model's code (:data:`KINDS`) for a compiled loop that steps several models, the
-column simulation's (:mod:`acc_gym.simulation._column_kernel`).
+:func:`law` picks it by the model's code (:data:`KINDS`), for :func:`law_rows` over a batch's
+rows (a model's ``act``) and for the compiled loops that step several models (the column
+simulation's, :mod:`acc_gym.simulation._column_kernel`; a world's surrounding slots,
+:func:`slot_laws`).
 
 ``tests/drivers/test_baselines.py`` checks every kernel against its array function to 1e-12
 (``np.power``/``np.exp`` and the compiled ``pow``/``exp`` may differ in the last bit).
@@ -96,9 +97,11 @@ def gm(v_now, gap, v, v_lead, c, m, l, v_desired, k_free, a_max, length_ahead): 
 
 
 @numba.njit(cache=True, inline="always")
-def fuzzy(v_now, v, gap, v_lead, a_lead, T, gamma, s0, h, level_width, max_level, step, v_desired, k_free,
-          a_max):  # pragma: no cover - compiled
-    """Fuzzy: ``fuzzy_accel`` on the perceived scene (nothing ahead ``inf``), min the free-road law."""
+def fuzzy(v_now, v, gap, v_lead, a_lead, p):  # pragma: no cover - compiled
+    """Fuzzy: ``fuzzy_accel`` on the perceived scene (nothing ahead ``inf``), min the free-road law;
+    ``p``: ``(T, gamma, s0, h, level_width, max_level, step, v_desired, k_free, a_max)``."""
+    T, gamma, s0, h, level_width, max_level, step, v_desired, k_free, a_max = (
+        p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9])
     a = np.inf
     if math.isfinite(gap):
         level = min(max(np.rint((gap - (s0 + h * v)) / level_width), -max_level), max_level)
@@ -137,84 +140,15 @@ def _acc_law(v, gap, v_lead, a_lead, k1, k2, k3, time_gap, s0):  # pragma: no co
 
 
 @numba.njit(cache=True, inline="always")
-def acc(v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2, two, k1, k2, k3, time_gap, s0, v_set, k_cruise, a_max,
-        vehicle_length):  # pragma: no cover - compiled
+def acc(v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2, two, p):  # pragma: no cover - compiled
     """ACC / CACC (``acc_accel``) on the current scene, with ``two`` the minimum over the second
-    vehicle ahead (Eq. 3: doubled ``s0`` and time gap plus one length), min the set-speed controller."""
+    vehicle ahead (Eq. 3: doubled ``s0`` and time gap plus one length), min the set-speed
+    controller; ``p``: ``(k1, k2, k3, time_gap, s0, v_set, k_cruise, a_max, vehicle_length)``."""
+    k1, k2, k3, time_gap, s0, v_set, k_cruise, a_max, vehicle_length = p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8]
     a = _acc_law(v, gap, v_lead, a_lead, k1, k2, k3, time_gap, s0)
     if two:
         a = min(a, _acc_law(v, gap2, v_lead2, a_lead2, k1, k2, k3, 2.0 * time_gap, 2.0 * s0 + vehicle_length))
     return _finish(min(a, _free(v, v_set, k_cruise, a_max)))
-
-
-# ---------------------------------------------------------------------------------------
-# A batch's rows (a model's act): parameters of one value per row or one for all (_at)
-# ---------------------------------------------------------------------------------------
-
-@numba.njit(cache=True)
-def idm_rows(v, gap, v_seen, v_lead, a, b, time_gap, s0, v_desired, delta, rows, out):  # pragma: no cover
-    """:func:`idm` over ``rows``."""
-    for r in rows:
-        out[r] = idm(v[r], gap[r], v_seen[r], v_lead[r], _at(a, r), _at(b, r), _at(time_gap, r), _at(s0, r),
-                     _at(v_desired, r), _at(delta, r))
-
-
-@numba.njit(cache=True)
-def gipps_rows(v_now, v, gap, v_lead, a, b, b_hat, tau, theta, v_desired, s0, dt, rows, out):  # pragma: no cover
-    """:func:`gipps` over ``rows``."""
-    for r in rows:
-        out[r] = gipps(v_now[r], v[r], gap[r], v_lead[r], _at(a, r), _at(b, r), _at(b_hat, r), _at(tau, r),
-                       _at(theta, r), _at(v_desired, r), _at(s0, r), dt)
-
-
-@numba.njit(cache=True)
-def gm_rows(v_now, gap, v_seen, v_lead, c, m, l, v_desired, k_free, a_max, length_ahead, rows, out):  # pragma: no cover
-    """:func:`gm` over ``rows``."""
-    for r in rows:
-        out[r] = gm(v_now[r], gap[r], v_seen[r], v_lead[r], _at(c, r), _at(m, r), _at(l, r), _at(v_desired, r),
-                    _at(k_free, r), _at(a_max, r), _at(length_ahead, r))
-
-
-@numba.njit(cache=True)
-def fuzzy_rows(v_now, v, gap, v_lead, a_lead, T, gamma, s0, h, level_width, max_level, step, v_desired, k_free, a_max,
-               rows, out):  # pragma: no cover
-    """:func:`fuzzy` over ``rows``."""
-    for r in rows:
-        out[r] = fuzzy(v_now[r], v[r], gap[r], v_lead[r], a_lead[r], _at(T, r), _at(gamma, r), _at(s0, r), _at(h, r),
-                       _at(level_width, r), _at(max_level, r), _at(step, r), _at(v_desired, r), _at(k_free, r),
-                       _at(a_max, r))
-
-
-@numba.njit(cache=True)
-def pipes_rows(v_now, v, gap, v_lead, c, v_desired, k_free, a_max, rows, out):  # pragma: no cover
-    """:func:`pipes` over ``rows``."""
-    for r in rows:
-        out[r] = pipes(v_now[r], v[r], gap[r], v_lead[r], _at(c, r), _at(v_desired, r), _at(k_free, r), _at(a_max, r))
-
-
-@numba.njit(cache=True)
-def newell_rows(v_now, gap, c, r_min, v_desired, dt, rows, out):  # pragma: no cover
-    """:func:`newell` over ``rows``."""
-    for r in rows:
-        out[r] = newell(v_now[r], gap[r], _at(c, r), _at(r_min, r), _at(v_desired, r), dt)
-
-
-@numba.njit(cache=True)
-def tyler_rows(v_now, v, gap, v_lead, c_v, c_s, c_t, s0, v_desired, k_free, a_max, rows, out):  # pragma: no cover
-    """:func:`tyler` over ``rows``."""
-    for r in rows:
-        out[r] = tyler(v_now[r], v[r], gap[r], v_lead[r], _at(c_v, r), _at(c_s, r), _at(c_t, r), _at(s0, r),
-                       _at(v_desired, r), _at(k_free, r), _at(a_max, r))
-
-
-@numba.njit(cache=True)
-def acc_rows(v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2, two, k1, k2, k3, time_gap, s0, v_set, k_cruise, a_max,
-             vehicle_length, rows, out):  # pragma: no cover
-    """:func:`acc` over ``rows`` (``two``: for every row)."""
-    for r in rows:
-        out[r] = acc(v[r], gap[r], v_lead[r], a_lead[r], gap2[r], v_lead2[r], a_lead2[r], two, _at(k1, r), _at(k2, r),
-                     _at(k3, r), _at(time_gap, r), _at(s0, r), _at(v_set, r), _at(k_cruise, r), _at(a_max, r),
-                     _at(vehicle_length, r))
 
 
 # ---------------------------------------------------------------------------------------
@@ -235,7 +169,7 @@ def law(kind, p, dt, two, v_now, v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2)
     [s] the model's step (Gipps, Newell), ``two`` whether ACC takes the second vehicle ahead
     too. ``v``, ``gap``, ``v_lead``, ``a_lead`` are as perceived (the scene its reaction delay
     ago; ACC has none), ``v_now`` the current own speed; ``gap2``, ``v_lead2``, ``a_lead2`` the
-    current second vehicle ahead (ACC only). The same numbers as the model's ``*_rows`` kernel."""
+    current second vehicle ahead (ACC only)."""
     if kind == IDM:
         return idm(v_now, gap, v, v_lead, p[0], p[1], p[2], p[3], p[4], p[5])
     if kind == GIPPS:
@@ -243,15 +177,28 @@ def law(kind, p, dt, two, v_now, v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2)
     if kind == GM:
         return gm(v_now, gap, v, v_lead, p[0], p[1], p[2], p[3], p[4], p[5], p[6])
     if kind == FUZZY:
-        return fuzzy(v_now, v, gap, v_lead, a_lead, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9])
+        return fuzzy(v_now, v, gap, v_lead, a_lead, p)
     if kind == PIPES:
         return pipes(v_now, v, gap, v_lead, p[0], p[1], p[2], p[3])
     if kind == NEWELL:
         return newell(v_now, gap, p[0], p[1], p[2], dt)
     if kind == TYLER:
         return tyler(v_now, v, gap, v_lead, p[0], p[1], p[2], p[3], p[4], p[5], p[6])
-    return acc(v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2, two, p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7],
-               p[8])
+    return acc(v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2, two, p)
+
+
+@numba.njit(cache=True)
+def law_rows(kind, params, dt, two, fields, rows, out):  # pragma: no cover - compiled
+    """:func:`law` of the model with code ``kind`` over a batch's ``rows`` (a model's ``act``):
+    ``params`` its parameters in :func:`law`'s order, a tuple of float arrays of one value per
+    row or one for all (:func:`_at`); ``fields`` the observation's ``(v_now, v, gap, v_lead,
+    a_lead, gap2, v_lead2, a_lead2)`` arrays, as :func:`law` reads them."""
+    v_now, v, gap, v_lead, a_lead, gap2, v_lead2, a_lead2 = fields
+    p = np.empty(MAX_PARAMS)
+    for r in rows:
+        for i in range(len(params)):
+            p[i] = _at(params[i], r)
+        out[r] = law(kind, p, dt, two, v_now[r], v[r], gap[r], v_lead[r], a_lead[r], gap2[r], v_lead2[r], a_lead2[r])
 
 
 # ---------------------------------------------------------------------------------------
@@ -272,8 +219,8 @@ def slot_laws(obs, laws, a_des):  # pragma: no cover - compiled
     baseline model ``law_kind[r]`` (:data:`KINDS`) with parameters ``params[r]`` and ``two[r]``
     (:func:`law`, no reaction delay: the scene as it is now); :data:`PROFILE`, the speed
     profile row ``profile[r]`` played to its next sample ``min(clock[r] + 1, end)``, ``(that
-    speed - v) / dt``; anything else (no driver) 0. The same numbers as each model's ``*_rows``
-    kernel and :meth:`SlotDrivers._play_profiles <acc_gym.drivers.slots.SlotDrivers._play_profiles>`
+    speed - v) / dt``; anything else (no driver) 0. The same numbers as each model's ``act`` and
+    :meth:`SlotDrivers._play_profiles <acc_gym.drivers.slots.SlotDrivers._play_profiles>`
     (``tests/drivers/test_slots.py``). Then every row's clock advances by one."""
     slot_kind, law_kind, params, two, dt, profile, clock = laws
     S = obs.shape[0]

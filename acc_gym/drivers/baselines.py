@@ -232,6 +232,11 @@ class _Model:
 
     # the parameters the model's compiled law (acc_gym.drivers._baseline_kernels) takes, in its order
     _kernel_fields: tuple[str, ...] = ()
+    _kind = -1  # that law's code (_baseline_kernels.KINDS): the nearest package model's, set per class
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls._kind = _k.KINDS.get(cls.__dict__.get("name"), cls._kind)  # a subclass keeps its model's law
 
     def _param_arrays(self) -> tuple:
         """The parameters of :attr:`_kernel_fields` as float arrays (one value per row, or one for
@@ -240,14 +245,18 @@ class _Model:
         p = self.params
         cached = self.__dict__.get("_arrays")
         if cached is None or cached[0] is not p:
-            cached = self._arrays = (p, tuple(np.atleast_1d(np.asarray(getattr(p, name), dtype=float))
+            cached = self._arrays = (p, tuple(np.ascontiguousarray(np.atleast_1d(np.asarray(getattr(p, name),
+                                                                                             dtype=float)))
                                               for name in self._kernel_fields))
         return cached[1]
 
     def act_into(self, now: Observation, seen: Observation, rows: np.ndarray, out: np.ndarray) -> None:
         """The finite, clipped output of rows ``rows`` (as :meth:`act` gives it) into ``out``, by
-        the model's compiled law: one call for a batch's rows (``seen`` is what the rows perceive)."""
-        raise NotImplementedError  # pragma: no cover
+        the model's compiled law (:func:`acc_gym.drivers._baseline_kernels.law_rows`): one call
+        for a batch's rows; ``now`` is the scene now, ``seen`` what the rows perceive."""
+        a_lead = seen.a_lead if seen.a_lead is not None else now.v  # (read by the laws that use it only)
+        _k.law_rows(self._kind, self._param_arrays(), self.dt, False,
+                    (now.v, seen.v, seen.gap, seen.v_lead, a_lead, now.v, now.v, now.v), rows, out)
 
     def _law(self, now: Observation, seen: Observation) -> np.ndarray:
         """Every row's output, finite and clipped to ``[A_FLOOR, A_CEIL]`` (:meth:`act_into`)."""
@@ -296,8 +305,6 @@ class Gipps(_SpeedModel):
     name = "gipps"
     _kernel_fields = ("a", "b", "b_hat", "tau", "theta", "v_desired", "s0")
 
-    def act_into(self, now, seen, rows, out):  # gipps_speed, compiled
-        _k.gipps_rows(now.v, seen.v, seen.gap, seen.v_lead, *self._param_arrays(), self.dt, rows, out)
 
 
 @dataclass(frozen=True)
@@ -330,8 +337,6 @@ class GM(_Model):
     name = "gm"
     _kernel_fields = ("c", "m", "l", "v_desired", "k_free", "a_max", "length_ahead")
 
-    def act_into(self, now, seen, rows, out):  # gm_accel (head to head), min free_accel, compiled
-        _k.gm_rows(now.v, seen.gap, seen.v, seen.v_lead, *self._param_arrays(), rows, out)
 
 
 @dataclass(frozen=True)
@@ -360,8 +365,6 @@ class Fuzzy(_Model):
     name = "fuzzy"
     _kernel_fields = ("T", "gamma", "s0", "h", "level_width", "max_level", "step", "v_desired", "k_free", "a_max")
 
-    def act_into(self, now, seen, rows, out):  # fuzzy_accel, min free_accel, compiled
-        _k.fuzzy_rows(now.v, seen.v, seen.gap, seen.v_lead, seen.a_lead, *self._param_arrays(), rows, out)
 
 
 @dataclass(frozen=True)
@@ -383,8 +386,6 @@ class Pipes(_Model):
     name = "pipes"
     _kernel_fields = ("c", "v_desired", "k_free", "a_max")
 
-    def act_into(self, now, seen, rows, out):  # pipes_accel, min free_accel, compiled
-        _k.pipes_rows(now.v, seen.v, seen.gap, seen.v_lead, *self._param_arrays(), rows, out)
 
 
 @dataclass(frozen=True)
@@ -405,8 +406,6 @@ class Newell(_SpeedModel):
     name = "newell"
     _kernel_fields = ("c", "r_min", "v_desired")
 
-    def act_into(self, now, seen, rows, out):  # newell_speed, compiled
-        _k.newell_rows(now.v, seen.gap, *self._param_arrays(), self.dt, rows, out)
 
 
 @dataclass(frozen=True)
@@ -431,8 +430,6 @@ class Tyler(_Model):
     name = "tyler"
     _kernel_fields = ("c_v", "c_s", "c_t", "s0", "v_desired", "k_free", "a_max")
 
-    def act_into(self, now, seen, rows, out):  # tyler_accel, min free_accel, compiled
-        _k.tyler_rows(now.v, seen.v, seen.gap, seen.v_lead, *self._param_arrays(), rows, out)
 
 
 @dataclass(frozen=True)
@@ -468,8 +465,6 @@ class IDM(_Model):
     name = "idm"
     _kernel_fields = ("a", "b", "time_gap", "s0", "v_desired", "delta")
 
-    def act_into(self, now, seen, rows, out):  # idm_accel, compiled
-        _k.idm_rows(now.v, seen.gap, seen.v, seen.v_lead, *self._param_arrays(), rows, out)
 
 
 @dataclass(frozen=True)
@@ -506,7 +501,8 @@ class ACC(_Model):
         # x_d is 2 x_d + l_v, i.e. s0 and h doubled plus one length
         two = self.params.predecessors == 2 and now.gap2 is not None
         g2, vl2, al2 = (now.gap2, now.v_lead2, now.a_lead2) if two else (now.v, now.v, now.v)
-        _k.acc_rows(now.v, now.gap, now.v_lead, now.a_lead, g2, vl2, al2, two, *self._param_arrays(), rows, out)
+        _k.law_rows(_k.ACC, self._param_arrays(), self.dt, two, (now.v, now.v, now.gap, now.v_lead, now.a_lead, g2, vl2,
+                                                                 al2), rows, out)
 
 
 def cacc_params(**kw) -> ACCParams:

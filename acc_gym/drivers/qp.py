@@ -320,8 +320,10 @@ def _spd_inverse(a):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _assemble_hessian(pp, pv_sym, vv, dd, x_n, v_n, q1, q2, r1, c_tg, r_jerk, p00, p01, p11):  # pragma: no cover
-    """``2 (M'WM + r1 I + r_jerk D'D)``, symmetrised, from the horizon's products (see CondensedQP)."""
+def _assemble_hessian(pp, pv_sym, vv, dd, x_n, v_n, w):  # pragma: no cover - compiled
+    """``2 (M'WM + r1 I + r_jerk D'D)``, symmetrised, from the horizon's products (see CondensedQP);
+    ``w``: the weights ``(q1, q2, r1, c_tg, r_jerk, p00, p01, p11)`` (``p..``: the terminal cost's)."""
+    q1, q2, r1, c_tg, r_jerk, p00, p01, p11 = w
     n = pp.shape[0]
     h = np.empty((n, n))
     for i in range(n):
@@ -338,10 +340,12 @@ def _assemble_hessian(pp, pv_sym, vv, dd, x_n, v_n, q1, q2, r1, c_tg, r_jerk, p0
 
 
 @numba.njit(cache=True)
-def _lead_linear_term(pp, vp, vv, vv_n, x_n, p_n, v_n, q1, q2, c_tg, p00, p01, p11):  # pragma: no cover - compiled
+def _lead_linear_term(pp, vp, vv, vv_n, x_n, p_n, v_n, w):  # pragma: no cover - compiled
     """:attr:`CondensedQP.f_lead`, ``2 M'W [Tp; Tv]`` with the sign of ``-M``: entry by entry the
     numpy expression ``2 * -(q1 (pp + c vp) + q2 vv + p00 x_n p_n' + p11 vv_n + p01 (x_n v_n' + v_n p_n'))``,
-    each operation in the same order (so the same values exactly), without its dozen ``N x N`` temporaries."""
+    each operation in the same order (so the same values exactly), without its dozen ``N x N`` temporaries;
+    ``w`` the weights as :func:`_assemble_hessian` takes them."""
+    q1, q2, _, c_tg, _, p00, p01, p11 = w
     n = pp.shape[0]
     out = np.empty((n, n))
     for i in range(n):
@@ -384,17 +388,21 @@ def _row_cumsums(g):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _condense(pp, pv_sym, vv, dd, x_n, v_n, tp_t, tv_t, k_dt, q1, q2, r1, c_tg, r_jerk, p00, p01, p11,
-              slack_quadratic):  # pragma: no cover - compiled
-    """``(ok, hessian, f_theta, hinv, hinv_sums, gain)`` of :class:`CondensedQP` in one call.
+def _condense(basis, x_n, w, slack_quadratic):  # pragma: no cover - compiled
+    """``(ok, hessian, f_theta, hinv, hinv_sums, gain)`` of :class:`CondensedQP` in one call, from
+    the horizon's products ``basis`` (``(pp, pv_sym, vv, dd, v_n, tp_t, tv_t, k_dt)`` of
+    :func:`_condensing_basis`), the last row ``x_n`` of ``Tp + c Tv`` and the weights ``w`` (as
+    :func:`_assemble_hessian` takes them).
 
     ``f_theta[:, :2] = -2 (Tp' + c Tv') W_x s - 2 Tv' W_v s`` with ``W s_theta`` written out
     (stage rows ``(q1, q1 k dt)`` and ``(0, q2)``, the terminal row from ``P``), and
     ``gain = -H^-1 f_theta``: the sums run in ascending ``k`` (plain loops, not BLAS, so the
     last bits can differ from numpy's products; tests/drivers/test_qp_condensing.py holds
     them to 1e-9 of the direct dense construction)."""
+    pp, pv_sym, vv, dd, v_n, tp_t, tv_t, k_dt = basis
+    q1, q2, _, c_tg, r_jerk, p00, p01, p11 = w
     n = pp.shape[0]
-    huu = _assemble_hessian(pp, pv_sym, vv, dd, x_n, v_n, q1, q2, r1, c_tg, r_jerk, p00, p01, p11)
+    huu = _assemble_hessian(pp, pv_sym, vv, dd, x_n, v_n, w)
     wx0 = np.empty(n)  # W s_theta, e_x rows (columns e_x0, e_v0)
     wx1 = np.empty(n)
     wv1 = np.empty(n)  # W s_theta, e_v rows (the e_x0 column is zero but on the terminal row)
@@ -489,13 +497,13 @@ class CondensedQP:
         # one compiled call (_condense): the Hessian M'WM + r1 I + r_jerk D'D from the cached
         # products, the linear term M'W s_theta (free response of the errors to theta, with
         # the sign of -M), the inverse, its running column sums and the unconstrained gain
+        w = (float(q1), float(q2), float(r1), float(c_tg), float(r_jerk), p00, p01, p11)
         ok, hessian, f_theta, hinv, hinv_sums, gain = _condense(
-            b.pp, b.pv_sym, b.vv, b.dd, x_n, b.v_n, b.tp_t, b.tv_t, b.k_dt, q1, q2, r1, c_tg, r_jerk,
-            p00, p01, p11, float(slack_quadratic))
+            (b.pp, b.pv_sym, b.vv, b.dd, b.v_n, b.tp_t, b.tv_t, b.k_dt), x_n, w, float(slack_quadratic))
         if not ok:
             raise np.linalg.LinAlgError("the condensed Hessian is not positive definite")
         self.hessian, self.f_theta, self.hinv, self.hinv_sums, self.gain = hessian, f_theta, hinv, hinv_sums, gain
-        self._lead_args = (q1, q2, c_tg, p00, p01, p11, x_n)  # f_lead and gain_lead are made on first use
+        self._lead_args = (w, x_n)  # f_lead and gain_lead are made on first use
         for arr in (self.f_theta, self.gain, self.hessian, self.hinv, self.hinv_sums, self.terminal):
             arr.setflags(write=False)  # shared: condensed_qp caches one instance per configuration
 
@@ -504,9 +512,9 @@ class CondensedQP:
         """``(N, N)``: the linear term's response to the target's predicted accelerations (made
         on first use: only the car-following law of a driver that predicts them needs it)."""
         if "_f_lead" not in self.__dict__:
-            q1, q2, c_tg, p00, p01, p11, x_n = self._lead_args
+            w, x_n = self._lead_args
             b = _condensing_basis(self.horizon)
-            f_lead = _lead_linear_term(b.pp, b.vp, b.vv, b.vv_n, x_n, b.p_n, b.v_n, q1, q2, c_tg, p00, p01, p11)
+            f_lead = _lead_linear_term(b.pp, b.vp, b.vv, b.vv_n, x_n, b.p_n, b.v_n, w)
             gain_lead = -self.hinv @ f_lead
             f_lead.setflags(write=False)
             gain_lead.setflags(write=False)

@@ -79,7 +79,7 @@ def test_lead_terms_equal_their_numpy_expressions(horizon):
     for _ in range(5):
         qp = CondensedQP(float(np.exp(rng.uniform(-4.0, 2.0))), 1.0, rng.uniform(40.0, 45.0), rng.uniform(0.3, 3.0),
                          horizon, r_jerk=float(rng.choice([0.0, 1.5])))
-        q1, q2, c_tg, p00, p01, p11, x_n = qp._lead_args
+        (q1, q2, _, c_tg, _, p00, p01, p11), x_n = qp._lead_args
         b = _condensing_basis(horizon)
         mw_lead = -(q1 * (b.pp + c_tg * b.vp) + q2 * b.vv + p00 * np.outer(x_n, b.p_n) + p11 * b.vv_n
                     + p01 * (np.outer(x_n, b.v_n) + np.outer(b.v_n, b.p_n)))
