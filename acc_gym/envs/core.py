@@ -312,16 +312,20 @@ class EpisodeBatch:
     # the floats of a step's info: its key and criteria row
     _INFO_ROWS = (("t", K.F_T), ("q", K.F_Q), ("g", K.F_Q), ("gap_safe", K.F_GS), ("a_applied", K.F_A))
 
-    def info(self) -> dict:
+    def info(self, active: np.ndarray | None = None) -> dict:
         """The last step's info over the scenes, as fresh arrays: the time ``t`` [s], ``q`` and
         ``g`` (Q [m]), ``gap_safe`` [m], ``a_applied`` [m/s^2], ``violation``, the surrounding
         drivers' ``modes`` ``(n, 2)``, their solver ``fallbacks`` this episode and the reward's
-        terms under ``rewards``."""
+        terms under ``rewards`` (0 for the scenes not ``active``, when given)."""
         plan = self._step_plan()
         info = {key: plan.fl[row].copy() for key, row in self._INFO_ROWS}
+        terms = self._python_terms
+        if terms is None:  # a built-in reward's terms: one array, masked in one call
+            rewards = dict(zip(plan.names, plan.terms.copy() if active is None else np.where(active, plan.terms, 0.0)))
+        else:
+            rewards = terms if active is None else {k: np.where(active, v, 0.0) for k, v in terms.items()}
         info.update(violation=plan.bo[K.B_VIOLATION].copy(), modes=self.modes(), fallbacks=self.fallbacks(),
-                    rewards=self._python_terms if self._python_terms is not None else
-                    dict(zip(plan.names, plan.terms.copy())))
+                    rewards=rewards)
         return info
 
     def info_row(self, row: int) -> dict:

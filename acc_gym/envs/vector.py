@@ -159,7 +159,7 @@ class ACCVectorEnv(VectorEnv):
         resetting = np.flatnonzero(self._autoreset)
         active = ~self._autoreset
         reward, term, trunc, final = self.core.step(action_to_accel(a, self.config), active=active)
-        raw = self.core.info()
+        raw = self.core.info(active)
         reward = np.where(active, reward, 0.0)
         term = term & active
         trunc = trunc & active
@@ -169,7 +169,7 @@ class ACCVectorEnv(VectorEnv):
             infos["_" + key] = active.copy()
         infos["modes"] = raw["modes"]
         infos["_modes"] = active.copy()
-        infos["rewards"] = {k: np.where(active, v, 0.0) for k, v in raw["rewards"].items()}
+        infos["rewards"] = raw["rewards"]
         infos["_rewards"] = active.copy()
         if final:
             done = np.zeros(self.num_envs, dtype=bool)
