@@ -16,6 +16,8 @@ import math
 
 import numba
 import numpy as np
+from numba.core import types
+from numba.experimental import structref
 
 from acc_gym.drivers.qp import K_TERM
 from acc_gym.vehicle import accel_lower_core, accel_upper_core
@@ -39,68 +41,182 @@ DUAL_STEPS_PER_INPUT = 4  # the kernel's QP solver hands over after 4 N + 16 ste
 DEPENDENT = 1e-12  # a row whose Schur pivot is below this (relative) depends on the working set
 N_SF = 10  # rows of the per-thread float scratch: u_unc (row 0, _one), then _active_set_solve's
 
-# Driver-parameter matrix columns (MPCDriver builds it); the vehicle's columns follow.
-A_MAX, A_MIN, A_REQ_SAIL, A_SAIL, C_TG, X_MIN, V_DES, V_MAX, JERK, JERK_EM = range(10)
-N_DRIVER_COLS = 10
 EMERGENCY_MARGIN = 1.25  # emergency plans may brake 25 % harder than kinematically needed
-C_ALPHA = N_DRIVER_COLS + 10  # after the vehicle's 10 columns: terminal chords (alpha, then beta)
-C_BETA = C_ALPHA + K_TERM
-# Settings vector
-S_DT, S_ZOH, S_HYST, S_CREEP, S_PULL, S_FEAS, S_LEADACC, S_SLACK_LIN, S_WARM, S_COAST_FADE, S_SHORT, S_STOP, S_BRAKE_TOL, S_FOLLOW_RANGE = range(14)
-# Work matrix columns (outputs)
-W_U0, W_TARGET, W_AREQ, W_PATH, W_TH0, W_TH1, W_LOWER0, W_UPPER0, W_DR, W_MODE_PRE, W_VIOL, W_SLACK, W_ITER, W_ANEED, \
-    W_FLOOR0 = range(15)
-N_WORK = 15  # theta = (W_TH0, W_TH1, u_prev)
+
+# ---------------------------------------------------------------------------------------
+# The kernel's records: named fields (numpy structured dtypes for what is per driver, one
+# numba structref holding them and the shared settings), one argument of every kernel
+# ---------------------------------------------------------------------------------------
+
+_F = np.float64
+# one driver's parameters (MPCDriverParams' names; v_max: its speed limit) and its vehicle's
+# (acc_gym.vehicle.VEHICLE_COLUMNS)
+DRIVER = np.dtype([
+    ("a_max", _F), ("a_min", _F), ("a_req_sail", _F), ("a_sail", _F),  # [m/s^2]
+    ("c_tg", _F),  # [s]
+    ("x_min", _F),  # [m]
+    ("v_desired", _F), ("v_max", _F),  # [m/s]
+    ("jerk_max", _F), ("jerk_emergency", _F),  # [m/s^3]
+    ("c_r0", _F), ("c_r1", _F), ("c_r2", _F), ("c_d", _F), ("area", _F), ("rho", _F), ("mass", _F),
+    ("traction_accel", _F), ("power", _F), ("mu_brake", _F),
+])
+DRIVER_PARAMS = DRIVER.names[:10]  # the MPCDriverParams fields of a DRIVER record
+DRIVER_VEHICLE = DRIVER.names[10:]
+# one driver's state between steps
+DRIVER_STATE = np.dtype([
+    ("mode", np.int64),
+    ("n_active", np.int64),  # the size of its working set ...
+    ("active", np.int64, (MAX_ACTIVE,)),  # ... codes 2 c + side (side 1: upper bound)
+    ("stats", np.int64, (N_STATS,)),  # running counts, ST_* order
+    ("idle", np.int64),  # 1: the row has no driver this step (skipped: output 0, path -1, no statistics)
+    ("follow_pending", np.int64),  # 1: its follow QP (gains, H^-1 sums) is not installed yet
+])
+# one driver's step: what prepare found and the backend's solve reads
+STEP = np.dtype([
+    ("u0", _F),  # [m/s^2] the first input (nan: the backend must solve)
+    ("path", np.int64),  # FAST, ACTIVE_SET, QP, HOLD, FALLBACK (-1: idle)
+    ("target", np.int64),  # LEAD, STOP, CRUISE
+    ("mode_pre", np.int64),  # the mode the bounds are of
+    ("a_req", _F),  # [m/s^2] Eq. (10) over the real targets
+    ("d_range", _F),  # [m/s] the most demanding target's range rate
+    ("th0", _F), ("th1", _F),  # the law's parameters (distance [m] and speed [m/s] errors; u_prev is the third)
+    ("lower0", _F), ("upper0", _F),  # [m/s^2] the first input's bounds
+    ("viol", _F),  # the unconstrained plan's largest violation
+    ("slack", _F),  # [m] the backend's slack
+    ("iterations", np.int64),  # the backend's
+    ("a_need", _F),  # [m/s^2] need_decel's
+    ("floor0", _F),  # [m/s^2] the least first input in ACCELERATE (-inf: none)
+])
+
+
+class _Fields(types.StructRef):
+    def preprocess_fields(self, fields):
+        return tuple((name, types.unliteral(t)) for name, t in fields)
+
+
+@structref.register
+class MPCType(_Fields):
+    """numba's type of an :data:`MPC_FIELDS` record."""
+
+
+class MPCRecord(structref.StructRefProxy):
+    """A batch of MPC drivers as the kernels read it (fields: :data:`MPC_FIELDS`); Python
+    keeps its own references to the same arrays (:class:`acc_gym.drivers.mpc.MPCDriver`)."""
+
+
+structref.define_boxing(MPCType, MPCRecord)
+
+_F1, _F2, _F3, _F4 = types.float64[::1], types.float64[:, ::1], types.float64[:, :, ::1], types.float64[:, :, :, ::1]
+_I1, _I2 = types.int64[::1], types.int64[:, ::1]
+# the settings, the scalars first (MPCSettings' names)
+MPC_SETTINGS = (
+    ("dt", types.float64),  # [s]
+    ("zoh", types.bool_),  # the exact (zero-order hold) discretisation, else Euler
+    ("hysteresis", types.float64),  # [m/s^2]
+    ("creep_speed", types.float64), ("pull_away_speed", types.float64),  # [m/s]
+    ("feas_tol", types.float64),
+    ("use_lead_accel", types.bool_),
+    ("slack_linear", types.float64),
+    ("warm_active_set", types.bool_),
+    ("coast_fade_speed", types.float64),  # [m/s]
+    ("stop_short_margin", types.float64),  # [m]
+    ("stop_speed", types.float64),  # [m/s]
+    ("brake_slack_tol", types.float64),  # [m]
+    ("follow_in_range", types.bool_),
+)
+MPC_FIELDS = MPC_SETTINGS + (
+    ("drivers", types.Array(numba.from_dtype(DRIVER), 1, "C")),  # (n,)
+    ("alpha", _F2), ("beta", _F2),  # (n, K_TERM) [m], [s] terminal chords (acc_gym.drivers.qp.terminal_chords)
+    ("gain_f", _F3),  # (n, N, 3) the follow law's gains (theta = e_x, e_v, u_prev)
+    ("gain_c", _F3),  # (n, N, 2) the cruise law's (e_v, u_prev)
+    ("gain_lead", _F3),  # (n, N, N + 1) running row sums of the lead-acceleration gains ((n, 1, 1) unused)
+    ("hinv_f", _F4), ("hinv_c", _F4),  # (n, 2, N, N) the follow and cruise H^-1 column sums by column
+    ("lower", _F2), ("upper", _F2),  # (n, M) the bounds (layout above)
+    ("plan", _F2),  # (n, N) [m/s^2]
+    ("aseq", _F2),  # (n, N) [m/s^2] the lead's predicted accelerations
+    ("state", types.Array(numba.from_dtype(DRIVER_STATE), 1, "C")),  # (n,)
+    ("out", types.Array(numba.from_dtype(STEP), 1, "C")),  # (n,)
+    ("hard", _I1),  # (n,) prepare's list of rows (its second return value counts them)
+    ("sf", _F2), ("sc", _I2),  # per-thread scratch (scratch())
+)
+MPC = MPCType(list(MPC_FIELDS))
+
+
+@numba.njit(cache=True)
+def make_mpc(s, a):  # pragma: no cover - compiled
+    """An :data:`MPC` record of the settings ``s`` and arrays ``a``, in :data:`MPC_FIELDS` order."""
+    r = structref.new(MPC)
+    r.dt, r.zoh, r.hysteresis, r.creep_speed, r.pull_away_speed, r.feas_tol, r.use_lead_accel = (
+        s[0], s[1], s[2], s[3], s[4], s[5], s[6])
+    r.slack_linear, r.warm_active_set, r.coast_fade_speed, r.stop_short_margin, r.stop_speed = s[7], s[8], s[9], s[10], s[11]
+    r.brake_slack_tol, r.follow_in_range = s[12], s[13]
+    r.drivers, r.alpha, r.beta, r.gain_f, r.gain_c, r.gain_lead, r.hinv_f, r.hinv_c = (
+        a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7])
+    r.lower, r.upper, r.plan, r.aseq, r.state, r.out, r.hard, r.sf, r.sc = (
+        a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15], a[16])
+    return r
+
+
+def record(settings: tuple, arrays: dict) -> MPCRecord:
+    """The :data:`MPC` record of ``settings`` (:data:`MPC_SETTINGS` order) and ``arrays`` by
+    name: the one place the fields' order is read (the arrays are shared, not copied)."""
+    out = []
+    for name, t in MPC_FIELDS[len(MPC_SETTINGS):]:
+        value = arrays[name]
+        if not (isinstance(value, np.ndarray) and value.flags.c_contiguous and value.ndim == t.ndim):
+            raise ValueError(f"MPC record field {name} must be a C-contiguous {t.ndim}-d array, got {value!r}")
+        out.append(value)
+    return make_mpc(tuple(settings), tuple(out))
 
 
 @numba.njit(cache=True, error_model="numpy")
-def vehicle_limits(P, i, v):
-    c = N_DRIVER_COLS
-    a_up = _accel_upper(v, P[i, c], P[i, c + 1], P[i, c + 2], P[i, c + 3], P[i, c + 4], P[i, c + 5],
-                        P[i, c + 6], P[i, c + 7], P[i, c + 8])
-    a_lo = _accel_lower(v, P[i, c], P[i, c + 1], P[i, c + 2], P[i, c + 3], P[i, c + 4], P[i, c + 5],
-                        P[i, c + 6], P[i, c + 9])
+def vehicle_limits(p, v):
+    """``(a_U(v), a_L(v))`` [m/s^2] of the vehicle of driver record ``p`` (a :data:`DRIVER`)."""
+    a_up = _accel_upper(v, p.c_r0, p.c_r1, p.c_r2, p.c_d, p.area, p.rho, p.mass, p.traction_accel, p.power)
+    a_lo = _accel_lower(v, p.c_r0, p.c_r1, p.c_r2, p.c_d, p.area, p.rho, p.mass, p.mu_brake)
     return a_up, a_lo
 
 
 @numba.njit(cache=True, error_model="numpy")
-def release_distance(P, i):
+def release_distance(p):
     """[m] How much further a stop at ``a_min`` rolls when the brake is released at the jerk
     bound before the standstill than braking at ``a_min`` to it: ``b^3 / (24 jerk_max^2)``,
     ``b = -a_min``."""
-    b = -P[i, A_MIN]
-    return b * b * b / (24.0 * P[i, JERK] * P[i, JERK])
+    b = -p.a_min
+    return b * b * b / (24.0 * p.jerk_max * p.jerk_max)
 
 
 @numba.njit(cache=True, error_model="numpy")
-def only_chords_short(P, S, i, u, G, bounds, ends, aseq, v, gap, v_lead, stop_gap):
+def only_chords_short(r, i, u, G, ends, v, gap, v_lead, stop_gap):
     """Whether driver ``i``'s plan ``u`` ``(N,)`` (no slack) keeps every bound row but the
     terminal chords (``(u, 0)``, then ``G (u, 0)``: ``G`` the general rows but the chords,
-    ``bounds`` ``(2, >= 5 N)`` the driver's lower and upper bounds) within the braking plan's
-    tolerance (``S[S_BRAKE_TOL]`` plus :func:`release_distance`), and the exact terminal
+    against the driver's bounds ``r.lower[i]``, ``r.upper[i]``) within the braking plan's
+    tolerance (``r.brake_slack_tol`` plus :func:`release_distance`), and the exact terminal
     condition: from the plan's end (``ends``: the last rows of the position and speed prediction
     matrices), braking at ``a_min`` (reached at ``jerk_max``) stops clear of the vehicle ahead
-    (``gap``, ``v_lead``, its predicted accelerations ``aseq``) and of the stop position
+    (``gap``, ``v_lead``, its predicted accelerations ``r.aseq[i]``) and of the stop position
     ``stop_gap``, within that tolerance (:meth:`acc_gym.drivers.mpc.MPCDriver._only_chords_short`
     says why)."""
     n = u.shape[0]
-    tol = S[S_BRAKE_TOL] + release_distance(P, i)
-    tn = n * S[S_DT]
+    p = r.drivers[i]
+    lower, upper, aseq = r.lower[i], r.upper[i], r.aseq[i]
+    tol = r.brake_slack_tol + release_distance(p)
+    tn = n * r.dt
     tp_n = ends[0]
     tv_n = ends[1]
     for k in range(n):
-        if u[k] < bounds[0, k] - tol or u[k] > bounds[1, k] + tol:
+        if u[k] < lower[k] - tol or u[k] > upper[k] + tol:
             return False
-    if 0.0 < bounds[0, n] - tol or 0.0 > bounds[1, n] + tol:  # the slack, 0
+    if 0.0 < lower[n] - tol or 0.0 > upper[n] + tol:  # the slack, 0
         return False
-    for r in range(G.shape[0]):
+    for row in range(G.shape[0]):
         acc = 0.0
         for k in range(n):
-            acc += G[r, k] * u[k]
-        if acc < bounds[0, n + 1 + r] - tol or acc > bounds[1, n + 1 + r] + tol:
+            acc += G[row, k] * u[k]
+        if acc < lower[n + 1 + row] - tol or acc > upper[n + 1 + row] + tol:
             return False
-    b, jerk = -P[i, A_MIN], P[i, JERK]
-    x_min = P[i, X_MIN]
+    b, jerk = -p.a_min, p.jerk_max
+    x_min = p.x_min
     dp = 0.0
     dv = 0.0
     for k in range(n):
@@ -157,12 +273,14 @@ def need_decel(v, room, v_lead, a_l, stop_gap, extra):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def alarmed(P, v, gap, v_lead, a_lead, out):
+def alarmed(r, v, gap, v_lead, a_lead, out):
     """``out[i]``: braking at its own ``a_min`` from now cannot keep driver ``i``'s ``x_min``
     behind the vehicle ahead as it is (:func:`need_decel`; the EMERGENCY screen's test on the
     true scene, which a driver with a perception sees at once)."""
+    drivers = r.drivers
     for i in range(v.size):
-        out[i] = need_decel(v[i], gap[i] - P[i, X_MIN], v_lead[i], a_lead[i], np.inf, 0.0) < P[i, A_MIN]
+        p = drivers[i]
+        out[i] = need_decel(v[i], gap[i] - p.x_min, v_lead[i], a_lead[i], np.inf, 0.0) < p.a_min
     return out
 
 
@@ -176,25 +294,26 @@ def required_decel(R, dR):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def coast_decel(P, S, i, v):
+def coast_decel(r, i, v):
     """Driver ``i``'s deceleration with the pedals released at speed ``v`` [m/s^2]: its
     ``a_sail`` (engine drag and resistance) fading linearly to 0 below the coasting fade
     speed, so that coasting alone never brings a car to a standstill (near idle the
     drivetrain no longer brakes it; an automatic even creeps): only the brake stops a car."""
-    fade = S[S_COAST_FADE]
+    fade = r.coast_fade_speed
+    a_sail = r.drivers[i].a_sail
     if fade > 0.0 and v < fade:
-        return P[i, A_SAIL] * max(v, 0.0) / fade
-    return P[i, A_SAIL]
+        return a_sail * max(v, 0.0) / fade
+    return a_sail
 
 
 @numba.njit(cache=True, error_model="numpy")
-def coast_distance(P, S, i, v):
+def coast_distance(r, i, v):
     """Distance [m] a car at ``v`` rolls with the pedals released (:func:`coast_decel`) before
     it stops (above the fade speed) or all but stops (below it: the exponential tail)."""
-    a_s = -P[i, A_SAIL]
+    a_s = -r.drivers[i].a_sail
     if a_s <= 0.0:
         return np.inf
-    fade = S[S_COAST_FADE]
+    fade = r.coast_fade_speed
     if v <= fade:
         return v * fade / a_s
     return (v * v - fade * fade) / (2.0 * a_s) + fade * fade / a_s
@@ -213,7 +332,7 @@ def decel_label(u0, coast, tol):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def mode_limits(P, S, i, m, v, u_prev, a_need, floor0):
+def mode_limits(r, i, m, v, u_prev, a_need, floor0):
     """``(lower0, upper0, env_lo, env_hi, rate)`` of driver ``i`` in mode ``m``: the first
     input's range (mode, ramp and vehicle), the plan's range and its per-step change bound.
 
@@ -221,22 +340,23 @@ def mode_limits(P, S, i, m, v, u_prev, a_need, floor0):
     demanding real target at ``x_min`` (0 if not closing); it sets the emergency range.
     ``floor0`` [m/s^2]: in ACCELERATE, the least first input (reached at the jerk bound):
     0 while rolling on at creep speed towards a stopped target (see ``_one``), else -inf."""
-    dt = S[S_DT]
-    a_up, a_lo = vehicle_limits(P, i, v)
-    a_max, a_min, a_sail = P[i, A_MAX], P[i, A_MIN], coast_decel(P, S, i, v)
+    dt = r.dt
+    p = r.drivers[i]
+    a_up, a_lo = vehicle_limits(p, v)
+    a_max, a_min, a_sail = p.a_max, p.a_min, coast_decel(r, i, v)
     if m == EMERGENCY:
         # brake as hard as the situation needs (with a margin), not harder: the range
         # reaches down to 1.25 times the kinematically needed deceleration, at the
         # emergency jerk; a_need = -inf opens the vehicle's whole braking range
         env_lo = max(a_lo, min(a_min, EMERGENCY_MARGIN * a_need))
-        rate = P[i, JERK_EM] * dt
+        rate = p.jerk_emergency * dt
         rate0 = rate
         mode_lo, mode_hi = env_lo, min(a_sail, a_up)
     else:
         env_lo = max(a_min, a_lo)
-        rate = P[i, JERK] * dt
+        rate = p.jerk_max * dt
         # recovering from braking harder than the driver's own limit: release at the emergency rate
-        rate0 = P[i, JERK_EM] * dt if u_prev < a_min - 1e-9 else rate
+        rate0 = p.jerk_emergency * dt if u_prev < a_min - 1e-9 else rate
         if m == ACCELERATE:
             mode_lo, mode_hi = max(a_sail, a_lo), min(a_max, a_up)
         else:
@@ -257,11 +377,13 @@ def mode_limits(P, S, i, m, v, u_prev, a_need, floor0):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def fill_bounds(P, S, i, m, v, u_prev, a_need, floor0, lower, upper):
-    """Input box, speed and rate rows of driver ``i`` in mode ``m``; returns (lower0, upper0)."""
+def fill_bounds(r, i, m, v, u_prev, a_need, floor0):
+    """Input box, speed and rate rows of driver ``i`` in mode ``m`` (into ``r.lower``,
+    ``r.upper``); returns (lower0, upper0)."""
+    lower, upper = r.lower, r.upper
     n = (lower.shape[1] - 2 * K_TERM) // 5
-    dt = S[S_DT]
-    lower0, upper0, env_lo, env_hi, rate = mode_limits(P, S, i, m, v, u_prev, a_need, floor0)
+    dt = r.dt
+    lower0, upper0, env_lo, env_hi, rate = mode_limits(r, i, m, v, u_prev, a_need, floor0)
     lower[i, 0] = lower0
     upper[i, 0] = upper0
     for k in range(1, n):
@@ -273,7 +395,7 @@ def fill_bounds(P, S, i, m, v, u_prev, a_need, floor0, lower, upper):
     # speed above v_max (e.g. v_desired lowered): the bound follows the slowest reachable speed
     slowest = 0.0
     ulow = lower0
-    vmax = P[i, V_MAX] - v
+    vmax = r.drivers[i].v_max - v
     for k in range(n):
         if k > 0:
             ulow = max(env_lo, ulow - rate)
@@ -289,13 +411,16 @@ def fill_bounds(P, S, i, m, v, u_prev, a_need, floor0, lower, upper):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def fill_target_rows(P, S, i, v, gap, v_lead, stop_gap, aseq, lower, upper):
+def fill_target_rows(r, i, v, gap, v_lead, stop_gap):
     """Gap rows (every real target, predicted at constant speed or with the lead's predicted
-    deceleration ``aseq``) and terminal stoppability rows of driver ``i``."""
+    deceleration ``r.aseq[i]``) and terminal stoppability rows of driver ``i``."""
+    lower, upper, aseq = r.lower, r.upper, r.aseq[i]
     n = (lower.shape[1] - 2 * K_TERM) // 5
-    dt = S[S_DT]
-    zoh = S[S_ZOH] > 0.5
-    x_min = P[i, X_MIN]
+    dt = r.dt
+    zoh = r.zoh
+    p = r.drivers[i]
+    alpha, beta = r.alpha[i], r.beta[i]
+    x_min = p.x_min
     has_lead = gap < np.inf
     has_stop = stop_gap < np.inf
     r0 = n + 1
@@ -316,8 +441,8 @@ def fill_target_rows(P, S, i, v, gap, v_lead, stop_gap, aseq, lower, upper):
     # terminal: dp_N + beta_j dv_N <= gap_N(free) - x_min - alpha_j - beta_j w_N(free)
     tn = n * dt
     for j in range(K_TERM):
-        al = P[i, C_ALPHA + j]
-        be = P[i, C_BETA + j]
+        al = alpha[j]
+        be = beta[j]
         cl = 5 * n + j
         cs = 5 * n + K_TERM + j
         lower[i, cl] = -INF
@@ -331,18 +456,21 @@ def fill_target_rows(P, S, i, v, gap, v_lead, stop_gap, aseq, lower, upper):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _fast_violation(P, S, i, v, u, lower0, upper0, env_lo, env_hi, rate, gap, v_lead, stop_gap, aseq):
+def _fast_violation(r, i, v, u, limits, gap, v_lead, stop_gap):
     """Largest violation of the plan ``u`` (s = 0), from the same quantities that
     :func:`fill_bounds` and :func:`fill_target_rows` write, without writing them (the
-    unconstrained fast path never needs the bounds in memory)."""
+    unconstrained fast path never needs the bounds in memory); ``limits``:
+    :func:`mode_limits`' ``(lower0, upper0, env_lo, env_hi, rate)``."""
+    lower0, upper0, env_lo, env_hi, rate = limits
     n = u.shape[0]
-    dt = S[S_DT]
-    zoh = S[S_ZOH] > 0.5
-    half = 0.5 * dt * dt if zoh else 0.0
-    x_min = P[i, X_MIN]
+    dt = r.dt
+    half = 0.5 * dt * dt if r.zoh else 0.0
+    p = r.drivers[i]
+    aseq, alpha, beta = r.aseq[i], r.alpha[i], r.beta[i]
+    x_min = p.x_min
     has_lead = gap < np.inf
     has_stop = stop_gap < np.inf
-    vmax = P[i, V_MAX] - v
+    vmax = p.v_max - v
     worst = max(lower0 - u[0], u[0] - upper0)
     dv = 0.0
     dp = 0.0
@@ -369,8 +497,8 @@ def _fast_violation(P, S, i, v, u, lower0, upper0, env_lo, env_hi, rate, gap, v_
         worst = max(worst, -dv - v, dv - max(vmax, slowest))
     tn = n * dt
     for j in range(K_TERM):
-        al = P[i, C_ALPHA + j]
-        be = P[i, C_BETA + j]
+        al = alpha[j]
+        be = beta[j]
         if has_lead:
             worst = max(worst, dp + be * dv - (gap + tn * v_lead + dpl - tn * v - x_min - al - be * (v - (v_lead + dvl))))
         if has_stop:
@@ -379,11 +507,13 @@ def _fast_violation(P, S, i, v, u, lower0, upper0, env_lo, env_hi, rate, gap, v_
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _check_inputs(v0, u_prev, gap, v_lead, a_lead, stop_gap, idle):
-    """0 if fine, else 1 + index of the offending field (see FIELDS in mpc.py); rows flagged
-    ``idle`` are not read (their values are nobody's input)."""
+def _check_inputs(obs, state):
+    """0 if fine, else 1 + index of the offending field of ``obs`` (``v, u_prev, gap, v_lead,
+    a_lead, stop_gap``; FIELDS in mpc.py); rows whose ``state`` is idle are not read (their
+    values are nobody's input)."""
+    v0, u_prev, gap, v_lead, a_lead, stop_gap = obs
     for i in range(v0.shape[0]):
-        if idle[i] != 0:
+        if state[i].idle != 0:
             continue
         if not (np.isfinite(v0[i]) and v0[i] >= 0.0):
             return 1
@@ -512,13 +642,15 @@ def _row_hinv(kind, k, hc, out, dt, zoh, beta):
 
 
 @numba.njit(cache=True)
-def _scan(u, lo, up, n, dt, zoh, members, n_members, beta):
+def _scan(u, lo, up, rows, members, n_members):
     """Largest violation of the plan ``u`` (s = 0) and its code (2c + side); the constraints
-    of the working set (``members[:n_members]``, codes) ignored.
+    of the working set (``members[:n_members]``, codes) ignored; ``rows`` the rows' geometry
+    ``(n, dt, zoh, beta)`` (:func:`_active_set_solve`).
 
     Straight-line over the rows: the box and rate rows are two-sided, the gap, speed and
     terminal rows one-sided (upper bounds only). Each row is compared in place (a helper
     taking the array of skipped rows cost more than the scan's arithmetic)."""
+    n, dt, zoh, beta = rows
     skip = np.zeros(lo.shape[0], dtype=np.bool_)
     for q in range(n_members):
         skip[members[q] >> 1] = True
@@ -568,8 +700,9 @@ def _scan(u, lo, up, n, dt, zoh, members, n_members, beta):
 
 
 @numba.njit(cache=True)
-def _load(code, hc, n, dt, zoh, beta, w, p0, p1):
+def _load(code, hc, rows, w, p0, p1):
     """``w = H^-1 n_a`` of the constraint ``code`` (O(N)), and its running sums."""
+    n, dt, zoh, beta = rows
     kind, k = _kind(code >> 1, n)
     _row_hinv(kind, k, hc, w, dt, zoh, beta)
     if code & 1:
@@ -604,11 +737,13 @@ def _backward(L, m, l, r):
 
 
 @numba.njit(cache=True)
-def _drop(j, m, codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf, n):
-    """Member ``j`` leaves the working set: the members after it move up one place (their
-    rows of ``H^-1 N``, rows and columns of ``S``, multipliers) and the Cholesky factor is
-    recomputed from row and column ``j`` on (the entries left of column ``j`` belong to the
-    same members as before: the same numbers). Returns the new size."""
+def _drop(j, m, ws, n):
+    """Member ``j`` leaves the working set ``ws`` (:func:`_active_set_solve`'s): the members
+    after it move up one place (their rows of ``H^-1 N``, rows and columns of ``S``,
+    multipliers) and the Cholesky factor is recomputed from row and column ``j`` on (the
+    entries left of column ``j`` belong to the same members as before: the same numbers).
+    Returns the new size."""
+    codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf = ws
     for a in range(j, m - 1):
         codes[a] = codes[a + 1]
         lam[a] = lam[a + 1]
@@ -638,9 +773,12 @@ def _drop(j, m, codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf, n):
 
 
 @numba.njit(cache=True)
-def _join(m, code, d, spp, l, piv, lam_p, w, p0, p1, codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf, n):
-    """Constraint ``code`` joins the working set at position ``m`` (its ``H^-1 n``, Schur row
-    ``d`` and factor row ``l`` already computed); returns the new size."""
+def _join(m, code, lam_p, row, ws, n):
+    """Constraint ``code`` joins the working set ``ws`` at position ``m`` with multiplier
+    ``lam_p``; ``row``: its ``H^-1 n`` and running sums, Schur row, diagonal entry, factor row
+    and pivot ``(w, p0, p1, d, spp, l, piv)``, already computed. Returns the new size."""
+    codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf = ws
+    w, p0, p1, d, spp, l, piv = row
     codes[m] = code
     lam[m] = lam_p
     for r in range(n):
@@ -657,9 +795,12 @@ def _join(m, code, d, spp, l, piv, lam_p, w, p0, p1, codes, lam, wbuf, p0buf, p1
 
 
 @numba.njit(cache=True)
-def _equality_optimum(u_unc, u_p0, u_p1, lo, up, codes, m, n, dt, zoh, beta, d, l, lbuf, lam):
+def _equality_optimum(u_unc, u_p0, u_p1, lo, up, m, rows, ws, d, l):
     """``lam = S^-1 (b_A - N_A' u_unc)``: the multipliers of the plan that meets the working
-    set's rows with equality (``u_p0``, ``u_p1``: the running sums of ``u_unc``)."""
+    set's rows with equality (``u_p0``, ``u_p1``: the running sums of ``u_unc``; ``d``,
+    ``l``: work vectors)."""
+    n, dt, zoh, beta = rows
+    codes, lam, lbuf = ws[0], ws[1], ws[6]
     h = 0.5 if zoh else 0.0
     e = n - 1
     eh = e + h
@@ -683,8 +824,7 @@ def _plan(u_unc, lam, wbuf, m, out):
 
 
 @numba.njit(cache=True)
-def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin, beta, out, sf, wbuf, p0buf, p1buf,
-                      sbuf, lbuf):
+def _active_set_solve(u_unc, hc, lo, up, m0, rows, tol, out, scratch):
     """Exact QP optimum with ``s = 0`` by a dual active-set method (Goldfarb and Idnani,
     1983) warm-started from a working set, verified by the KKT conditions.
 
@@ -714,7 +854,19 @@ def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin,
     would outgrow ``wbuf``, or after ``4 N + 16`` steps (``DUAL_STEPS_PER_INPUT``; a
     degenerate optimum -- more active rows than inputs, a braking ramp held by both its box
     and its rate rows -- started far from its working set can take longer).
+
+    Arguments: ``u_unc`` (N,) the unconstrained plan; ``hc`` the law's H^-1 column sums
+    (:func:`_row_hinv`); ``lo``, ``up`` the bounds; ``m0`` the warm start's size; ``rows`` the
+    rows' geometry ``(N, dt, zoh, beta)`` (``beta``: the terminal chords' slopes); ``tol``:
+    ``(feas, slack_linear)``; ``out`` (N,) the plan; ``scratch``: the thread's ``(sf, sw, ss,
+    codes)`` (:func:`prepare`'s layout; ``codes[:m0]`` the warm start, on return the final
+    working set). The working set ``ws`` is ``(codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf)``:
+    codes, multipliers, rows of ``H^-1 N`` and their running sums, ``S`` and its factor.
     """
+    n, dt, zoh, beta = rows
+    feas, slack_lin = tol
+    sf, sw, ss, codes = scratch
+    wbuf, p0buf, p1buf, sbuf, lbuf = sw[0], sw[1], sw[2], ss[0], ss[1]
     u_p0 = sf[1, :n]  # running sums of u_unc, then of the plan
     u_p1 = sf[2, :n]
     lam = sf[3]  # the members' multipliers
@@ -724,6 +876,7 @@ def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin,
     d = sf[7]  # a Schur column N_A' H^-1 n (or a right-hand side), its L^-1 image, and S^-1 of it
     l = sf[8]
     r = sf[9]
+    ws = (codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf)
     cap = wbuf.shape[0]
     h = 0.5 if zoh else 0.0
     e = n - 1
@@ -735,7 +888,7 @@ def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin,
         code = codes[a]
         if _kind(code >> 1, n)[0] == 5 or m >= cap or abs(_bound(code, lo[code >> 1], up[code >> 1])) >= 0.5 * INF:
             continue  # the slack's bound, no room, or a row without that bound this step
-        _load(code, hc, n, dt, zoh, beta, wbuf[m], p0buf[m], p1buf[m])
+        _load(code, hc, rows, wbuf[m], p0buf[m], p1buf[m])
         for b in range(m):
             cb = codes[b]
             kind, k, k1, kb = _at(cb, n)
@@ -747,10 +900,9 @@ def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin,
         piv = _forward(lbuf, m, d, spp, l)
         if piv <= DEPENDENT * max(1.0, spp):
             continue  # its row depends on the members before it
-        m = _join(m, code, d, spp, l, piv, 0.0, wbuf[m], p0buf[m], p1buf[m], codes, lam, wbuf, p0buf, p1buf, sbuf,
-                  lbuf, n)
+        m = _join(m, code, 0.0, (wbuf[m], p0buf[m], p1buf[m], d, spp, l, piv), ws, n)
     while m > 0:
-        _equality_optimum(u_unc, u_p0, u_p1, lo, up, codes, m, n, dt, zoh, beta, d, l, lbuf, lam)
+        _equality_optimum(u_unc, u_p0, u_p1, lo, up, m, rows, ws, d, l)
         j = -1
         worst = 0.0
         for a in range(m):
@@ -758,19 +910,19 @@ def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin,
                 worst, j = lam[a], a
         if j < 0:
             break
-        m = _drop(j, m, codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf, n)
+        m = _drop(j, m, ws, n)
     _plan(u_unc, lam, wbuf, m, out)
     # --- 2. dual steps
     steps = 0
     _prefix(out, u_p0, u_p1)  # the plan's running sums (the violated row's distance), kept with every move
     while True:
-        viol, code = _scan(out, lo, up, n, dt, zoh, codes, m, beta)
+        viol, code = _scan(out, lo, up, rows, codes, m)
         if viol <= feas:
             if steps > 0:  # (without dual steps, the plan and multipliers are the warm start's fresh ones)
                 _prefix(u_unc, u_p0, u_p1)
-                _equality_optimum(u_unc, u_p0, u_p1, lo, up, codes, m, n, dt, zoh, beta, d, l, lbuf, lam)
+                _equality_optimum(u_unc, u_p0, u_p1, lo, up, m, rows, ws, d, l)
                 _plan(u_unc, lam, wbuf, m, out)
-                viol, code = _scan(out, lo, up, n, dt, zoh, codes, m, beta)
+                viol, code = _scan(out, lo, up, rows, codes, m)
             big = 0.0
             low = 0.0
             state = 0.0
@@ -783,7 +935,7 @@ def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin,
             return viol <= feas and low >= -1e-9 * (1.0 + big) and state < slack_lin, m
         if m >= cap:
             return False, m
-        _load(code, hc, n, dt, zoh, beta, w, w0, w1)
+        _load(code, hc, rows, w, w0, w1)
         kind, k, k1, kb = _at(code, n)
         spp = _signed(code, _row_value(kind, k, eh, w[k], w[k1], w0[k], w1[k], w0[e], w1[e], beta[kb], dt, h))
         bp = _bound(code, lo[code >> 1], up[code >> 1])
@@ -828,9 +980,9 @@ def _active_set_solve(u_unc, hc, lo, up, codes, m0, n, dt, zoh, feas, slack_lin,
                 lam[a] = max(lam[a] - t * r[a], 0.0)
             lam_p += t
             if t2 <= t1:
-                m = _join(m, code, d, spp, l, piv, lam_p, w, w0, w1, codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf, n)
+                m = _join(m, code, lam_p, (w, w0, w1, d, spp, l, piv), ws, n)
                 break
-            m = _drop(j, m, codes, lam, wbuf, p0buf, p1buf, sbuf, lbuf, n)
+            m = _drop(j, m, ws, n)
 
 
 @numba.njit(cache=True)
@@ -875,20 +1027,28 @@ def _lead_term(c_ks, c_next, a_l, ks, a_part, n):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gain_lead, hinv_f, hinv_c,
-         mode, lower, upper, plan, aseq, W, act_codes, act_count, stats, sf, sw, ss, codes):
-    """Driver ``i``'s step; returns its path (QP: the backend must solve it)."""
+def _one(i, r, obs, scratch):
+    """Driver ``i``'s step (``r`` the :data:`MPC` record, ``obs`` :func:`prepare`'s, ``scratch``
+    the thread's ``(sf, sw, ss, codes)``); returns its path (QP: the backend must solve it)."""
+    v0, u_prev, gap, v_lead, a_lead, stop_gap = obs
+    sf, sw, ss, codes = scratch
+    p = r.drivers[i]
+    st = r.state[i]
+    o = r.out[i]
+    plan, aseq, lower, upper = r.plan, r.aseq, r.lower, r.upper
+    gain_f, gain_c, gain_lead = r.gain_f, r.gain_c, r.gain_lead
     n = plan.shape[1]
     u_unc = sf[0, :n]
-    dt = S[S_DT]
-    zoh = S[S_ZOH] > 0.5
-    use_acc = S[S_LEADACC] > 0.5
-    warm = S[S_WARM] > 0.5
-    stats[i, ST_STEPS] += 1
+    dt = r.dt
+    zoh = r.zoh
+    use_acc = r.use_lead_accel
+    warm = r.warm_active_set
+    stats = st.stats
+    stats[ST_STEPS] += 1
     v = v0[i]
     up = u_prev[i]
-    c = P[i, C_TG]
-    x_min = P[i, X_MIN]
+    c = p.c_tg
+    x_min = p.x_min
     has_lead = gap[i] < np.inf
     has_stop = stop_gap[i] < np.inf
     # predicted lead accelerations: its measured *deceleration* held until it would stop
@@ -923,21 +1083,21 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         if a < areq:
             areq, dR, v_t = a, -v, 0.0
     # --- mode logic (before solving); decelerating modes are 'BRAKE' until labelled
-    m = mode[i]
+    m = st.mode
     # a (nearly) stopped target: where the driver must stop (room [m] to it) and whether
     # coasting would leave it short of there by more than the stop-short margin
-    creep = S[S_CREEP]
+    creep = r.creep_speed
     room = np.inf
     if has_lead:
         room = gap[i] - x_min
     if has_stop:
         room = min(room, stop_gap[i])
-    short = v_t <= creep and room - coast_distance(P, S, i, v) > S[S_SHORT]
+    short = v_t <= creep and room - coast_distance(r, i, v) > r.stop_short_margin
     if m == ACCELERATE:
         # to the decelerating modes when the required deceleration reaches the driver's
         # sailing threshold (Eq. 10), or, creeping towards a (nearly) stopped target, once
         # coasting would carry it there (within the stop-short margin): it lifts off
-        if areq <= P[i, A_REQ_SAIL] or (v <= creep and v_t <= S[S_PULL] and not short):
+        if areq <= p.a_req_sail or (v <= creep and v_t <= r.pull_away_speed and not short):
             m = BRAKE
     elif m == SAIL or m == BRAKE:
         # back to the throttle only once the brake is released (the applied acceleration is
@@ -946,8 +1106,8 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         # itself moves faster than creep speed, or if coasting would leave the driver short of
         # a (nearly) stopped target by more than the stop-short margin (a driver rolls on
         # towards the queue instead of stopping short of it on engine drag)
-        released = up >= coast_decel(P, S, i, v) - 1e-9
-        if released and ((areq > P[i, A_REQ_SAIL] + S[S_HYST] and (dR > S[S_PULL] or (m == SAIL and v > creep and v_t > creep)))
+        released = up >= coast_decel(r, i, v) - 1e-9
+        if released and ((areq > p.a_req_sail + r.hysteresis and (dR > r.pull_away_speed or (m == SAIL and v > creep and v_t > creep)))
                          or short):
             m = ACCELERATE
         else:
@@ -957,15 +1117,15 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
     # comfortable QP is infeasible, so go straight to EMERGENCY; an emergency ends only
     # when braking at 80 % of a_min would do (hysteresis), then the QP decides.
     a_need = need_decel(v, gap[i] - x_min, v_lead[i], a_l, stop_gap[i], 0.0)
-    W[i, W_ANEED] = a_need
+    o.a_need = a_need
     # a braking driver is screened with a braking plan's tolerance (MPCSettings.brake_slack_tol
     # plus the jerk-bounded release before a standstill; see MPCDriver._only_chords_short):
     # the plans it accepts may end that far inside x_min, and carrying one out is no emergency
     # (the extra room only makes the need milder: recomputed only when the plain need escalates)
     a_screen = a_need
-    if m == BRAKE and a_need < P[i, A_MIN]:
-        a_screen = need_decel(v, gap[i] - x_min, v_lead[i], a_l, stop_gap[i], S[S_BRAKE_TOL] + release_distance(P, i))
-    if a_screen < P[i, A_MIN] * (0.8 if m == EMERGENCY else 1.0):
+    if m == BRAKE and a_need < p.a_min:
+        a_screen = need_decel(v, gap[i] - x_min, v_lead[i], a_l, stop_gap[i], r.brake_slack_tol + release_distance(p))
+    if a_screen < p.a_min * (0.8 if m == EMERGENCY else 1.0):
         m = EMERGENCY
     elif m == EMERGENCY:
         m = BRAKE
@@ -973,7 +1133,7 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
     # instead if it asks for less acceleration (as in ACC and IDM; compared on the
     # unconstrained first input). Decelerating, the driver deals with its target.
     target = CRUISE
-    th0, th1 = 0.0, P[i, V_DES] - v
+    th0, th1 = 0.0, p.v_desired - v
     best = gain_c[i, 0, 0] * th1 + gain_c[i, 0, 1] * up
     t_real, t0, t1 = -1, 0.0, 0.0
     if has_lead:
@@ -987,33 +1147,33 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         # creeping towards a (nearly) stopped vehicle or a stop position, the driver deals
         # with it, not with its desired speed (the free-driving law, held back by the gap
         # constraint, would coast it to a stop short of the queue)
-        queue = t_real == STOP or v_lead[i] <= S[S_PULL]
+        queue = t_real == STOP or v_lead[i] <= r.pull_away_speed
         if u0 <= best or m != ACCELERATE or queue:
             target, th0, th1 = t_real, t0, t1
     # rolling on towards a stopped target at creep speed (coasting would stop it short), the
     # driver no longer slows down: a weak distance weight would otherwise approach the queue
     # exponentially, never arriving; it rolls on until coasting reaches the stopping point
     floor0 = 0.0 if (m == ACCELERATE and short and v <= creep) else -np.inf
-    W[i, W_FLOOR0] = floor0
-    lower0, upper0, env_lo, env_hi, rate = mode_limits(P, S, i, m, v, up, a_need, floor0)
-    W[i, W_TARGET] = target
-    W[i, W_AREQ] = areq
-    W[i, W_DR] = dR
-    W[i, W_TH0] = th0
-    W[i, W_TH1] = th1
-    W[i, W_LOWER0] = lower0
-    W[i, W_UPPER0] = upper0
-    W[i, W_MODE_PRE] = m
-    W[i, W_SLACK] = 0.0
-    W[i, W_ITER] = 0.0
+    o.floor0 = floor0
+    lower0, upper0, env_lo, env_hi, rate = mode_limits(r, i, m, v, up, a_need, floor0)
+    o.target = target
+    o.a_req = areq
+    o.d_range = dR
+    o.th0 = th0
+    o.th1 = th1
+    o.lower0 = lower0
+    o.upper0 = upper0
+    o.mode_pre = m
+    o.slack = 0.0
+    o.iterations = 0
     # --- the final stop: decelerating at walking pace towards a stopped target that coasting
     # would not leave it short of, the driver brakes to a standstill, no QP: within this step
     # if that needs no more than one jerk step of braking (so that the deceleration's drop to
     # 0 at standstill is within the jerk bound too), else at that braking (at most a_min),
     # reached at the jerk bound; a stopping distance of a few centimetres
-    final = (m == BRAKE or m == SAIL) and 0.0 < v < S[S_STOP] and v_t <= S[S_PULL] and not short
-    step = P[i, JERK] * dt  # [m/s^2] one step's input change at the jerk bound
-    final_brake = max(-step, P[i, A_MIN])  # the final stop's braking
+    final = (m == BRAKE or m == SAIL) and 0.0 < v < r.stop_speed and v_t <= r.pull_away_speed and not short
+    step = p.jerk_max * dt  # [m/s^2] one step's input change at the jerk bound
+    final_brake = max(-step, p.a_min)  # the final stop's braking
     if final:
         upper0 = min(upper0, min(max(max(-v / dt, final_brake), up - step), up + step))
     # --- stopping inside this step (or standing) under the mode's least braking: no QP
@@ -1032,30 +1192,30 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
         if v > 0.0 and v * v > -2.0 * upper0 * room and not (
                 final and ramp_stop_distance(v, upper0, step, final_brake, dt) <= room):
             a_exact = -v * v / (2.0 * max(room, 1e-9))
-            a_own = min(upper0, max(P[i, A_MIN], up - step))
+            a_own = min(upper0, max(p.a_min, up - step))
             if (m != EMERGENCY and a_exact < a_own < 0.0
-                    and v * v / (-2.0 * a_own) - room <= S[S_BRAKE_TOL] + release_distance(P, i)):
+                    and v * v / (-2.0 * a_own) - room <= r.brake_slack_tol + release_distance(p)):
                 upper0 = a_own
             else:
-                upper0 = max(a_exact, vehicle_limits(P, i, v)[1])
+                upper0 = max(a_exact, vehicle_limits(p, v)[1])
             m = BRAKE
-        W[i, W_U0] = upper0
-        W[i, W_PATH] = HOLD
-        W[i, W_VIOL] = 0.0
+        o.u0 = upper0
+        o.path = HOLD
+        o.viol = 0.0
         # standing still, or stopping inside this step: the brake holds the car (no car comes to
         # a standstill on engine drag at a chosen point), unless in an emergency; a final stop's
         # ramp that does not stop in this step is labelled by its input (decel_label)
         if m == EMERGENCY:
-            mode[i] = EMERGENCY
+            st.mode = EMERGENCY
         elif v + dt * upper0 > 0.0:
-            mode[i] = decel_label(upper0, coast_decel(P, S, i, v), 1e-9)
+            st.mode = decel_label(upper0, coast_decel(r, i, v), 1e-9)
         else:
-            mode[i] = BRAKE
+            st.mode = BRAKE
         for k in range(n):
             plan[i, k] = 0.0
         plan[i, 0] = upper0
-        act_count[i] = 0
-        stats[i, ST_HOLD] += 1
+        st.n_active = 0
+        stats[ST_HOLD] += 1
         return HOLD
     # --- unconstrained law
     for k in range(n):
@@ -1066,135 +1226,125 @@ def _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, gai
             if target == LEAD and a_l != 0.0:
                 z += _lead_term(gain_lead[i, k, ks], gain_lead[i, k, min(ks + 1, n)], a_l, ks, a_part, n)
         u_unc[k] = z
-    beta = P[i, C_BETA:C_BETA + K_TERM]
-    viol = _fast_violation(P, S, i, v, u_unc, lower0, upper0, env_lo, env_hi, rate, gap[i], v_lead[i],
-                           stop_gap[i], aseq[i])
+    beta = r.beta[i]
+    viol = _fast_violation(r, i, v, u_unc, (lower0, upper0, env_lo, env_hi, rate), gap[i], v_lead[i],
+                           stop_gap[i])
     # driver model 6 (MPCSettings.follow_in_range): below its desired speed, a driver whose
     # free-driving plan would break the constraints of the moving vehicle ahead follows that
     # vehicle (its law controls), as a human closes up to the car it is stuck behind; without
     # it the free law, held back by those constraints, settles far behind a slow vehicle
     # (at 2 m/s 8-13 m beyond x_min + c_TG v) and a dense column crawls
-    if (S[S_FOLLOW_RANGE] > 0.0 and target == CRUISE and t_real == LEAD and m == ACCELERATE
-            and v < P[i, V_DES] and viol > S[S_FEAS]):
+    if (r.follow_in_range and target == CRUISE and t_real == LEAD and m == ACCELERATE
+            and v < p.v_desired and viol > r.feas_tol):
         target, th0, th1 = LEAD, t0, t1
-        W[i, W_TARGET] = target
-        W[i, W_TH0] = th0
-        W[i, W_TH1] = th1
+        o.target = target
+        o.th0 = th0
+        o.th1 = th1
         for k in range(n):
             z = gain_f[i, k, 0] * th0 + gain_f[i, k, 1] * th1 + gain_f[i, k, 2] * up
             if a_l != 0.0:
                 z += _lead_term(gain_lead[i, k, ks], gain_lead[i, k, min(ks + 1, n)], a_l, ks, a_part, n)
             u_unc[k] = z
-        viol = _fast_violation(P, S, i, v, u_unc, lower0, upper0, env_lo, env_hi, rate, gap[i], v_lead[i],
-                               stop_gap[i], aseq[i])
-    W[i, W_VIOL] = viol
+        viol = _fast_violation(r, i, v, u_unc, (lower0, upper0, env_lo, env_hi, rate), gap[i], v_lead[i],
+                               stop_gap[i])
+    o.viol = viol
     path = -1
-    if viol <= S[S_FEAS]:
+    if viol <= r.feas_tol:
         for k in range(n):
             plan[i, k] = u_unc[k]
-        act_count[i] = 0
+        st.n_active = 0
         path = FAST
     else:  # some constraint is active: the bounds are needed in memory from here on
-        fill_bounds(P, S, i, m, v, up, a_need, floor0, lower, upper)
-        fill_target_rows(P, S, i, v, gap[i], v_lead[i], stop_gap[i], aseq[i], lower, upper)
+        fill_bounds(r, i, m, v, up, a_need, floor0)
+        fill_target_rows(r, i, v, gap[i], v_lead[i], stop_gap[i])
     if path < 0 and warm:
         # --- warm active set: last step's, shifted along the horizon
-        m0 = min(act_count[i], MAX_ACTIVE)
+        m0 = min(st.n_active, MAX_ACTIVE)
         for a in range(m0):
-            codes[a] = act_codes[i, a]
+            codes[a] = st.active[a]
         m0 = _shift_active(codes, m0, n)
-        hc = hinv_c[i] if target == CRUISE else hinv_f[i]
-        ok, ma = _active_set_solve(u_unc, hc, lower[i], upper[i], codes, m0, n, dt, zoh, S[S_FEAS],
-                                   S[S_SLACK_LIN], beta, plan[i], sf, sw[0], sw[1], sw[2], ss[0], ss[1])
+        hc = r.hinv_c[i] if target == CRUISE else r.hinv_f[i]
+        ok, ma = _active_set_solve(u_unc, hc, lower[i], upper[i], m0, (n, dt, zoh, beta), (r.feas_tol, r.slack_linear),
+                                   plan[i], scratch)
         # remember the working set either way: the solution's, or a warm start for the backend
         for a in range(ma):
-            act_codes[i, a] = codes[a]
-        act_count[i] = ma
+            st.active[a] = codes[a]
+        st.n_active = ma
         if ok:
             path = ACTIVE_SET
     if path >= 0:
-        W[i, W_U0] = min(max(plan[i, 0], lower0), upper0)
-        W[i, W_PATH] = path
-        stats[i, ST_FAST if path == FAST else ST_ACTIVE_SET] += 1
+        o.u0 = min(max(plan[i, 0], lower0), upper0)
+        o.path = path
+        stats[ST_FAST if path == FAST else ST_ACTIVE_SET] += 1
         if m == ACCELERATE or m == EMERGENCY:
-            mode[i] = m
+            st.mode = m
             if m == EMERGENCY:
-                stats[i, ST_EMERGENCY] += 1
+                stats[ST_EMERGENCY] += 1
         else:
             # SAIL: the pedals released (the coasting deceleration); harder: BRAKE; above it: still ACCELERATE
-            mode[i] = decel_label(min(max(plan[i, 0], lower0), upper0), coast_decel(P, S, i, v), 1e-7)
+            st.mode = decel_label(min(max(plan[i, 0], lower0), upper0), coast_decel(r, i, v), 1e-7)
     else:
-        W[i, W_U0] = np.nan
-        W[i, W_PATH] = QP
-        mode[i] = m
+        o.u0 = np.nan
+        o.path = QP
+        st.mode = m
     return path
 
 
 def _make_prepare(parallel):
     rng = numba.prange if parallel else range
 
-    def prepare(P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, GL, H, B, PA, W, I, SF, SC):
-        # few arguments on purpose: numba's dispatch costs ~0.1 us per argument
-        err = _check_inputs(v0, u_prev, gap, v_lead, a_lead, stop_gap, I[:, I_IDLE])
+    def prepare(r, obs):
+        err = _check_inputs(obs, r.state)
         if err != 0:
             return BAD_INPUT, err
+        v0, gap, stop_gap = obs[0], obs[2], obs[5]
+        state, out, hard = r.state, r.out, r.hard
         nd = v0.shape[0]
         # a driver's follow QP is installed at its first step with a real target (MPCDriver's
         # lazy install): list the rows that need it now and return before writing anything
         n_need = 0
         for i in range(nd):
-            if I[i, I_FOLLOW_PENDING] != 0 and I[i, I_IDLE] == 0 and (gap[i] < np.inf or stop_gap[i] < np.inf):
-                I[n_need, I_HARD] = i
+            s = state[i]
+            if s.follow_pending != 0 and s.idle == 0 and (gap[i] < np.inf or stop_gap[i] < np.inf):
+                hard[n_need] = i
                 n_need += 1
         if n_need > 0:
             return NEED_FOLLOW, n_need
-        n = PA.shape[2]
+        n = r.plan.shape[1]
         width = max(n, MAX_ACTIVE + 1)
         o1 = N_SF * width
         o2 = o1 + 3 * MAX_ACTIVE * n
         o3 = o2 + 2 * MAX_ACTIVE * MAX_ACTIVE
-        hinv_f = H[:, 0]
-        hinv_c = H[:, 1]
-        lower = B[:, 0]
-        upper = B[:, 1]
-        plan = PA[:, 0]
-        aseq = PA[:, 1]
-        mode = I[:, I_MODE]
-        act_count = I[:, I_COUNT]
-        stats = I[:, I_STATS:I_STATS + N_STATS]
-        act_codes = I[:, I_CODES:]
+        SF, SC = r.sf, r.sc
         for i in rng(nd):
-            if I[i, I_IDLE] != 0:  # a row without an MPC driver (SlotDrivers' absent and profile rows)
-                W[i, W_U0] = 0.0
-                W[i, W_PATH] = -1
+            if state[i].idle != 0:  # a row without an MPC driver (SlotDrivers' absent and profile rows)
+                out[i].u0 = 0.0
+                out[i].path = -1
                 continue
             t = numba.get_thread_id() if parallel else 0  # scratch: one set per thread
-            _one(i, P, S, v0, u_prev, gap, v_lead, a_lead, stop_gap, gain_f, gain_c, GL, hinv_f, hinv_c,
-                 mode, lower, upper, plan, aseq, W, act_codes, act_count, stats,
-                 SF[t, :o1].reshape((N_SF, width)), SF[t, o1:o2].reshape((3, MAX_ACTIVE, n)),
-                 SF[t, o2:o3].reshape((2, MAX_ACTIVE, MAX_ACTIVE)), SC[t])
+            _one(i, r, obs, (SF[t, :o1].reshape((N_SF, width)), SF[t, o1:o2].reshape((3, MAX_ACTIVE, n)),
+                             SF[t, o2:o3].reshape((2, MAX_ACTIVE, MAX_ACTIVE)), SC[t]))
         n_hard = 0
         for i in range(nd):
-            if W[i, W_PATH] == QP:
-                I[n_hard, I_HARD] = i
+            if out[i].path == QP:
+                hard[n_hard] = i
                 n_hard += 1
         return SOLVED, n_hard
 
-    prepare.__doc__ = """One step for every driver.
+    prepare.__doc__ = """One step for every driver of the :data:`MPC` record ``r``; ``obs`` the
+    observed ``(v, u_prev, gap, v_lead, a_lead, stop_gap)``, arrays ``(n,)``.
 
     Returns ``(status, k)``: ``(BAD_INPUT, field)`` for invalid inputs (``field``: 1 + the
     offending field's index, :func:`_check_inputs`; nothing written); ``(NEED_FOLLOW, k)`` when
-    ``k`` drivers flagged in ``I[:, I_FOLLOW_PENDING]`` have a real target (a vehicle ahead or
-    a stop position) this step, their indices in ``I[:, I_HARD]`` and nothing else written:
-    the caller installs their follow QPs and calls again; else ``(SOLVED, k)``, ``k`` the
-    number of drivers whose QP the warm active-set solver could not settle (their indices in
-    ``I[:, I_HARD]``): the caller solves those with the backend. Rows flagged in ``I[:, I_IDLE]`` are skipped,
-    their inputs unread (output 0, path -1, nothing else written): rows do not interact, so the others' numbers
-    are the same with or without them. Arrays (``n`` drivers, ``N`` steps, ``M``
-    bounds): ``G`` (n, 2, N, 3) follow/cruise gains; ``GL`` lead-acceleration gain sums;
-    ``H`` (n, 2, 2, N, N) follow/cruise H^-1 column sums by column
-    (``CondensedQP.hinv_columns``); ``B`` (n, 2, M) lower/upper bounds; ``PA`` (n, 2, N) plan and predicted lead accelerations; ``W`` (n, N_WORK);
-    ``I`` (n, I_CODES + MAX_ACTIVE) int state; ``SF``/``SC`` per-thread scratch.
+    ``k`` drivers whose state is ``follow_pending`` have a real target (a vehicle ahead or a
+    stop position) this step, their indices in ``r.hard[:k]`` and nothing else written: the
+    caller installs their follow QPs and calls again; else ``(SOLVED, k)``, ``k`` the number of
+    drivers whose QP the warm active-set solver could not settle (their indices in
+    ``r.hard[:k]``): the caller solves those with the backend. Idle rows are skipped, their
+    inputs unread (output 0, path -1, nothing else written): rows do not interact, so the
+    others' numbers are the same with or without them. Each driver's step is in ``r.out``
+    (:data:`STEP`), its state in ``r.state`` (:data:`DRIVER_STATE`), its plan and bounds in
+    ``r.plan``, ``r.lower``, ``r.upper``.
     """
     return prepare
 
@@ -1202,12 +1352,6 @@ def _make_prepare(parallel):
 prepare = numba.njit(cache=True, error_model="numpy")(_make_prepare(False))
 prepare_parallel = numba.njit(cache=True, error_model="numpy", parallel=True)(_make_prepare(True))
 PARALLEL_MIN_BATCH = 128  # below this many drivers the thread pool costs more than it saves
-# int state columns
-I_MODE, I_COUNT, I_HARD = 0, 1, 2
-I_STATS = 3
-I_IDLE = I_STATS + N_STATS  # 1: the row has no driver this step (skipped: output 0, path -1, no statistics)
-I_FOLLOW_PENDING = I_IDLE + 1  # 1: the row's follow QP (gains, H^-1 sums) is not installed yet
-I_CODES = I_FOLLOW_PENDING + 1
 # prepare's statuses (its first return value; the second is a count or a field, see prepare)
 SOLVED = 0  # the step is done but for k drivers the backend must solve
 BAD_INPUT = 1  # an input field is invalid (the second value: 1 + its index); nothing written
@@ -1223,13 +1367,17 @@ def scratch(n_steps: int, parallel: bool):
 
 
 @numba.njit(cache=True)
-def store_active(i, lam, tol, n, act_codes, act_count):
-    """Remember the active set of a backend solution (lam > 0: upper, < 0: lower bound)."""
+def store_active(r, i, lam, tol):
+    """Remember the active set of a backend solution ``lam`` (lam > 0: upper, < 0: lower
+    bound; the slack's entry, at index N, skipped) as driver ``i``'s working set."""
+    st = r.state[i]
+    active = st.active
+    n = r.plan.shape[1]
     m = 0
     for c in range(lam.shape[0]):
         if c == n:
             continue
         if abs(lam[c]) > tol and m < MAX_ACTIVE:
-            act_codes[i, m] = 2 * c + (1 if lam[c] > 0 else 0)
+            active[m] = 2 * c + (1 if lam[c] > 0 else 0)
             m += 1
-    act_count[i] = m
+    st.n_active = m

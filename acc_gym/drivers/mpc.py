@@ -149,9 +149,6 @@ class SolvePath(IntEnum):
     FALLBACK = K.FALLBACK  # the backend failed; safe fallback used
 
 
-_PARAM_COLUMNS = ("a_max", "a_min", "a_req_sail", "a_sail", "c_tg", "x_min", "v_desired", "v_max",
-                  "jerk_max", "jerk_emergency")
-assert _PARAM_COLUMNS.index("jerk_emergency") == K.JERK_EM
 
 
 @dataclass(frozen=True)
@@ -395,42 +392,40 @@ class MPCDriver:
         s = self.settings
         self.horizon = s.horizon_structure
         p = self.params
+        # the kernel's records (acc_gym.drivers._mpc_kernel.MPC_FIELDS): one DRIVER record per
+        # driver, its DRIVER_STATE and STEP, the laws' arrays and the settings
+        self._drivers = np.zeros(n, K.DRIVER)
+        for c in K.DRIVER_PARAMS:
+            self._drivers[c] = p.speed_limit if c == "v_max" else getattr(p, c)
+        for c in K.DRIVER_VEHICLE:
+            self._drivers[c] = getattr(self.vehicle, c)
         self._alpha, self._beta = terminal_chords(p.a_min, p.jerk_max, p.speed_limit)
-        self._P = np.ascontiguousarray(np.concatenate(
-            [np.stack([np.asarray(p.speed_limit if c == "v_max" else getattr(p, c), float) for c in _PARAM_COLUMNS], axis=1),
-             self.vehicle.as_matrix(n), self._alpha, self._beta], axis=1))
-        self._S = np.array([s.dt, 1.0 if s.discretisation == "zoh" else 0.0, s.hysteresis, s.creep_speed,
-                            s.pull_away_speed, s.feas_tol, 1.0 if s.use_lead_accel else 0.0, s.slack_linear,
-                            1.0 if s.warm_active_set else 0.0, s.coast_fade_speed, s.stop_short_margin,
-                            s.stop_speed, s.brake_slack_tol, 1.0 if s.follow_in_range else 0.0])
+        self._settings = tuple(s.dt if name == "dt" else (s.discretisation == "zoh") if name == "zoh"
+                               else getattr(s, name) for name, _ in K.MPC_SETTINGS)
         pairs = [self._condensed(float(p.q1[i]), float(p.q2[i]), float(p.r1[i]), float(p.c_tg[i]), float(p.r_jerk[i]))
                  for i in range(n)]
         self._qp_follow = [f for f, _ in pairs]
         self._qp_cruise = [c for _, c in pairs]
         N = self.horizon.n_steps
-        # kernel arrays (few, large: numba's dispatch cost grows with the argument count)
         # unconstrained laws: follow (theta = e_x, e_v, u_prev), cruise (e_v, u_prev)
         self._gain_f = np.ascontiguousarray(np.stack([q.gain for q in self._qp_follow]))
         self._gain_c = np.ascontiguousarray(np.stack([q.gain[:, 1:] for q in self._qp_cruise]))
-        self._H = np.ascontiguousarray(np.stack([np.stack([f.hinv_columns, c.hinv_columns])
-                                                 for f, c in zip(self._qp_follow, self._qp_cruise)]))
+        self._hinv_f = np.ascontiguousarray(np.stack([q.hinv_columns for q in self._qp_follow]))
+        self._hinv_c = np.ascontiguousarray(np.stack([q.hinv_columns for q in self._qp_cruise]))
         # running row sums of the lead-acceleration gains (the predicted sequence is piecewise constant)
-        self._GL = (np.ascontiguousarray(np.stack([q.gain_lead_sums for q in self._qp_follow]))
-                    if s.use_lead_accel else np.zeros((n, 1, 1)))
-        self._B = np.zeros((n, 2, self.horizon.n_bounds))
-        self._lower, self._upper = self._B[:, 0], self._B[:, 1]
-        self._PA = np.zeros((n, 2, N))
-        self._plan, self._aseq = self._PA[:, 0], self._PA[:, 1]
-        self._W = np.zeros((n, K.N_WORK))
-        self._I = np.zeros((n, K.I_CODES + K.MAX_ACTIVE), dtype=np.int64)
-        self.mode = self._I[:, K.I_MODE]
-        self._act_count = self._I[:, K.I_COUNT]
-        self._hard = self._I[:, K.I_HARD]
-        self._stats = self._I[:, K.I_STATS:K.I_STATS + K.N_STATS]
-        self._act_codes = self._I[:, K.I_CODES:]
+        self._gain_lead = (np.ascontiguousarray(np.stack([q.gain_lead_sums for q in self._qp_follow]))
+                           if s.use_lead_accel else np.zeros((n, 1, 1)))
+        self._lower = np.zeros((n, self.horizon.n_bounds))
+        self._upper = np.zeros((n, self.horizon.n_bounds))
+        self._plan = np.zeros((n, N))
+        self._aseq = np.zeros((n, N))
+        self._state = np.zeros(n, K.DRIVER_STATE)
+        self._out = np.zeros(n, K.STEP)
+        self._hard = np.zeros(n, dtype=np.int64)
         self._parallel = n >= K.PARALLEL_MIN_BATCH and s.parallel is not False
         self._prepare = K.prepare_parallel if self._parallel else K.prepare
         self._SF, self._SC = K.scratch(N, self._parallel)
+        self._views()
         self._inf = np.full(n, np.inf)
         # what the drivers see: the scene as it is (None), or through a perception layer
         # (acc_gym.drivers.perception.Perception: reaction time, anticipation, estimation errors)
@@ -443,12 +438,13 @@ class MPCDriver:
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
         """Back to ACCELERATE with zeroed statistics; solvers restart cold."""
-        pending = self._I[:, K.I_FOLLOW_PENDING].copy()
-        self._I[:] = 0  # modes (ACCELERATE = 0), working sets, statistics
-        self._I[:, K.I_FOLLOW_PENDING] = pending  # which follow QPs are installed is the drivers', not the episode's
-        self._PA[:] = 0.0
-        self._W[:] = 0.0
-        self._W[:, K.W_PATH] = -1
+        pending = self._state["follow_pending"].copy()
+        self._state[:] = 0  # modes (ACCELERATE = 0), working sets, statistics, idle marks
+        self._state["follow_pending"] = pending  # which follow QPs are installed is the drivers', not the episode's
+        self._plan[:] = 0.0
+        self._aseq[:] = 0.0
+        self._out[:] = 0
+        self._out["path"] = -1
         # backend workspaces survive a reset (their factorisations depend only on the
         # driver), but every one restarts cold from the kernel's working set, so an
         # episode never depends on the previous one
@@ -470,7 +466,7 @@ class MPCDriver:
         idle = np.asarray(idle)
         if idle.shape != (self.n,) or idle.dtype != bool:
             raise ValueError(f"idle must be booleans of shape ({self.n},), got {idle.dtype} {idle.shape}")
-        self._I[:, K.I_IDLE] = idle
+        self._state["idle"] = idle
 
     def set_params(self, index, params: MPCDriverParams) -> None:
         """Give drivers ``index`` (an int or a sequence) new ``params`` and restart them.
@@ -514,19 +510,23 @@ class MPCDriver:
                 value = getattr(new, f.name)
                 target[idx] = new.speed_limit if value is None else value
         p = cur
-        alpha, beta = terminal_chords(p.a_min[idx], p.jerk_max[idx], p.speed_limit[idx])
-        self._alpha[idx], self._beta[idx] = alpha, beta
-        cols = np.stack([np.asarray(p.speed_limit if c == "v_max" else getattr(p, c), float)[idx]
-                         for c in _PARAM_COLUMNS], axis=1)
-        self._P[idx, :cols.shape[1]] = cols
-        self._P[idx, -2 * alpha.shape[1]:] = np.concatenate([alpha, beta], axis=1)
+        d = self._drivers
+        for c in K.DRIVER_PARAMS:
+            d[c][idx] = np.asarray(p.speed_limit if c == "v_max" else getattr(p, c), float)[idx]
+        self._alpha[idx], self._beta[idx] = terminal_chords(p.a_min[idx], p.jerk_max[idx], p.speed_limit[idx])
         for i in idx.tolist():
             self._install_qps(i)
-        self._I[idx] = 0
-        self._I[idx, K.I_FOLLOW_PENDING] = 1
-        self._PA[idx] = 0.0
-        self._W[idx] = 0.0
-        self._W[idx, K.W_PATH] = -1
+        self._restart(idx)
+
+    def _restart(self, idx) -> None:
+        """Drivers ``idx`` (an int or an index array) from the start: no mode, working set,
+        statistics, plan or step; their follow QPs pending; not idle."""
+        self._state[idx] = 0
+        self._state["follow_pending"][idx] = 1
+        self._plan[idx] = 0.0
+        self._aseq[idx] = 0.0
+        self._out[idx] = 0
+        self._out["path"][idx] = -1
 
     def _install(self, i: int) -> None:
         """The rest of :meth:`set_params` for one driver ``i`` whose parameters are already in
@@ -535,25 +535,20 @@ class MPCDriver:
         its order, so the same values exactly; ``tests/drivers/test_fast_paths.py`` checks it)."""
         p = self.params
         limit_col = p.v_desired if p.v_max is None else p.v_max  # speed_limit, without its array copy
-        row = [float((limit_col if c == "v_max" else getattr(p, c))[i]) for c in _PARAM_COLUMNS]
+        row = [float((limit_col if c == "v_max" else getattr(p, c))[i]) for c in K.DRIVER_PARAMS]
         b = -float(p.a_min[i])
         jerk = float(p.jerk_max[i])
-        limit = row[_PARAM_COLUMNS.index("v_max")]
+        limit = row[K.DRIVER_PARAMS.index("v_max")]
         w = [limit * k / K_TERM for k in range(K_TERM + 1)]
         f = [x * x / (2.0 * b) + x * b / (2.0 * jerk) for x in w]
         beta = [(f[k + 1] - f[k]) / (w[k + 1] - w[k]) for k in range(K_TERM)]
         alpha = [f[k] - beta[k] * w[k] for k in range(K_TERM)]
+        d = self._drivers[i]
+        for c, value in zip(K.DRIVER_PARAMS, row):
+            d[c] = value
         self._alpha[i], self._beta[i] = alpha, beta
-        P = self._P[i]
-        P[:len(row)] = row
-        P[-2 * K_TERM:] = alpha + beta
         self._install_qps(i)
-        self._I[i] = 0
-        self._I[i, K.I_FOLLOW_PENDING] = 1
-        self._PA[i] = 0.0
-        W = self._W[i]
-        W[:] = 0.0
-        W[K.W_PATH] = -1
+        self._restart(i)
 
     def _condensed(self, q1: float, q2: float, r1: float, c_tg: float, r_jerk: float):
         """The follow and cruise QPs of one driver configuration, from
@@ -611,7 +606,7 @@ class MPCDriver:
         qc = self._cruise_qp(*self._config(i))
         self._qp_follow[i], self._qp_cruise[i] = None, qc
         self._gain_c[i] = qc.gain[:, 1:]
-        self._H[i, 1] = qc.hinv_columns
+        self._hinv_c[i] = qc.hinv_columns
         if self._backends:
             for key in [k for k in self._backends if k[0] == i]:
                 del self._backends[key]
@@ -623,29 +618,34 @@ class MPCDriver:
         qf = self._follow_qp(*self._config(i))
         self._qp_follow[i] = qf
         self._gain_f[i] = qf.gain
-        self._H[i, 0] = qf.hinv_columns
+        self._hinv_f[i] = qf.hinv_columns
         if self.settings.use_lead_accel:
-            self._GL[i] = qf.gain_lead_sums
-        self._I[i, K.I_FOLLOW_PENDING] = 0
+            self._gain_lead[i] = qf.gain_lead_sums
+        self._state[i]["follow_pending"] = 0
 
     def __getstate__(self):
         state = self.__dict__.copy()
-        for view in ("_lower", "_upper", "_plan", "_aseq", "mode", "_act_count", "_hard", "_stats", "_act_codes",
-                     "_last_arrays", "_u_prev"):
-            state.pop(view, None)  # views into the packed kernel arrays, re-made in __setstate__
+        for view in ("mode", "_act_count", "_stats", "_act_codes", "_record", "_last_arrays", "_u_prev"):
+            state.pop(view, None)  # views into the kernel's arrays and its record, re-made in __setstate__
         state["_backends"] = {}  # solver workspaces are rebuilt after unpickling ...
         state["_last_used"] = {}  # ... and start from the kernel's working set
         return state
 
     def __setstate__(self, state):
         self.__dict__.update(state)
-        self._lower, self._upper = self._B[:, 0], self._B[:, 1]
-        self._plan, self._aseq = self._PA[:, 0], self._PA[:, 1]
-        self.mode = self._I[:, K.I_MODE]
-        self._act_count = self._I[:, K.I_COUNT]
-        self._hard = self._I[:, K.I_HARD]
-        self._stats = self._I[:, K.I_STATS:K.I_STATS + K.N_STATS]
-        self._act_codes = self._I[:, K.I_CODES:]
+        self._views()
+
+    def _views(self) -> None:
+        """Views into the kernel's arrays by name, and the kernel's record of them."""
+        self.mode = self._state["mode"]
+        self._act_count = self._state["n_active"]
+        self._stats = self._state["stats"]
+        self._act_codes = self._state["active"]
+        self._record = K.record(self._settings, {
+            "drivers": self._drivers, "alpha": self._alpha, "beta": self._beta, "gain_f": self._gain_f, "gain_c": self._gain_c, "gain_lead": self._gain_lead,
+            "hinv_f": self._hinv_f, "hinv_c": self._hinv_c, "lower": self._lower, "upper": self._upper,
+            "plan": self._plan, "aseq": self._aseq, "state": self._state, "out": self._out, "hard": self._hard,
+            "sf": self._SF, "sc": self._SC})
 
     @property
     def stats(self) -> dict[str, np.ndarray]:
@@ -659,16 +659,16 @@ class MPCDriver:
     @property
     def info(self) -> dict[str, np.ndarray]:
         """Diagnostics of the last :meth:`act` call, arrays of shape ``(n,)``."""
-        W = self._W
+        out = self._out
         return {
             "mode": self.mode.copy(),
-            "target": W[:, K.W_TARGET].astype(np.int64),
-            "a_req": W[:, K.W_AREQ].copy(),
-            "path": W[:, K.W_PATH].astype(np.int64),
-            "slack": W[:, K.W_SLACK].copy(),
-            "iterations": W[:, K.W_ITER].astype(np.int64),
-            "lower0": W[:, K.W_LOWER0].copy(),
-            "upper0": W[:, K.W_UPPER0].copy(),
+            "target": out["target"].copy(),
+            "a_req": out["a_req"].copy(),
+            "path": out["path"].copy(),
+            "slack": out["slack"].copy(),
+            "iterations": out["iterations"].copy(),
+            "lower0": out["lower0"].copy(),
+            "upper0": out["upper0"].copy(),
             "fallbacks": self._stats[:, K.ST_FALLBACK].copy(),
         }
 
@@ -676,21 +676,18 @@ class MPCDriver:
         """The QP driver ``i`` solved in the last step (after any escalation), for inspection
         and cross-checks: ``hessian`` (N+1, N+1), ``q`` (N+1,), ``G`` (rows, N+1) and the
         bounds ``lower``/``upper`` on ``(z, G z)`` (layout in :mod:`acc_gym.drivers.qp`)."""
-        W = self._W
-        if int(W[i, K.W_PATH]) in (K.FAST, K.HOLD):  # the fast paths never write the bounds: do it now
+        w = self._out[i]
+        if int(w["path"]) in (K.FAST, K.HOLD):  # the fast paths never write the bounds: do it now
             v, u_prev, gap, v_lead, _, stop_gap = (float(arr[i]) for arr in self._last_arrays)
-            K.fill_bounds(self._P, self._S, i, int(W[i, K.W_MODE_PRE]), v, u_prev, W[i, K.W_ANEED], W[i, K.W_FLOOR0],
-                          self._lower,
-                          self._upper)
-            K.fill_target_rows(self._P, self._S, i, v, gap, v_lead, stop_gap, self._aseq[i], self._lower,
-                               self._upper)
-        target = int(W[i, K.W_TARGET])
+            K.fill_bounds(self._record, i, int(w["mode_pre"]), v, u_prev, float(w["a_need"]), float(w["floor0"]))
+            K.fill_target_rows(self._record, i, v, gap, v_lead, stop_gap)
+        target = int(w["target"])
         qp = (self._qp_cruise if target == K.CRUISE else self._qp_follow)[i]
-        theta = np.array([W[i, K.W_TH0], W[i, K.W_TH1], self._u_prev[i]])
+        theta = np.array([w["th0"], w["th1"], self._u_prev[i]])
         aseq = self._aseq[i] if (target == K.LEAD and self.settings.use_lead_accel) else None
         return {"hessian": np.array(qp.hessian), "q": qp.linear_term(theta, aseq),
                 "G": self.horizon.constraint_matrix(self._beta[i]), "lower": self._lower[i].copy(),
-                "upper": self._upper[i].copy(), "path": int(W[i, K.W_PATH])}
+                "upper": self._upper[i].copy(), "path": int(w["path"])}
 
     @property
     def plan(self) -> np.ndarray:
@@ -736,19 +733,17 @@ class MPCDriver:
             # what the drivers see; one whose true scene is an emergency (braking at its a_min
             # cannot keep x_min) sees it as it is: the reflex that the reaction time does not delay
             seen = self.perception.perceive_fields(*arrays[:5])
-            alarm = K.alarmed(self._P, arrays[0], arrays[2], arrays[3], arrays[4], self._alarm)
+            alarm = K.alarmed(self._record, arrays[0], arrays[2], arrays[3], arrays[4], self._alarm)
             if alarm.any():
                 for f in range(5):
                     seen[f, alarm] = arrays[f][alarm]
             arrays = [seen[0], seen[1], seen[2], seen[3], seen[4], arrays[5]]
-        W = self._W
-        status, n_hard = self._prepare(self._P, self._S, *arrays, self._gain_f, self._gain_c, self._GL, self._H,
-                                       self._B, self._PA, W, self._I, self._SF, self._SC)
+        obs = tuple(arrays)
+        status, n_hard = self._prepare(self._record, obs)
         if status == K.NEED_FOLLOW:  # drivers meeting their first real target: their follow QPs, then the step
             for i in self._hard[:n_hard].tolist():
                 self._install_follow(i)
-            status, n_hard = self._prepare(self._P, self._S, *arrays, self._gain_f, self._gain_c, self._GL, self._H,
-                                           self._B, self._PA, W, self._I, self._SF, self._SC)
+            status, n_hard = self._prepare(self._record, obs)
         if status == K.BAD_INPUT:
             name = _FIELDS[n_hard - 1]
             raise ValueError(f"observation.{name} is invalid for an MPC driver: {arrays[n_hard - 1]!r} "
@@ -758,7 +753,7 @@ class MPCDriver:
         for j in range(n_hard):
             self._solve_one(int(self._hard[j]), arrays)
         self._step += 1
-        return W[:, K.W_U0].copy()
+        return self._out["u0"].copy()
 
     def _backend(self, i: int, cruise: bool, emergency: bool = False):
         # one workspace per driver, law and bound regime (emergency bounds differ a lot)
@@ -797,28 +792,28 @@ class MPCDriver:
         drops to 0 as it stops (the driver's own final stop does so, see the HOLD path), so
         this release distance is added to the tolerance. Neither is an emergency. (Compiled:
         :func:`acc_gym.drivers._mpc_kernel.only_chords_short`.)"""
-        return K.only_chords_short(self._P, self._S, i, u, self.horizon.general_rows, self._B[i],
-                                   self.horizon.terminal_rows, self._aseq[i], float(arrays[0][i]),
+        return K.only_chords_short(self._record, i, u, self.horizon.general_rows, self.horizon.terminal_rows,
+                                   float(arrays[0][i]),
                                    float(arrays[2][i]), float(arrays[3][i]), float(arrays[5][i]))
 
     def _solve_one(self, i: int, arrays) -> None:
         """Backend solve for driver ``i``, with mode escalation on slack and a counted fallback."""
-        W = self._W
+        W = self._out[i]  # this driver's STEP record (a view)
         s = self.settings
         N = self.horizon.n_steps
         v, u_prev = float(arrays[0][i]), float(arrays[1][i])
-        target = int(W[i, K.W_TARGET])
+        target = int(W["target"])
         cruise = target == K.CRUISE
         qp = (self._qp_cruise if cruise else self._qp_follow)[i]
-        theta = np.array([W[i, K.W_TH0], W[i, K.W_TH1], u_prev])
+        theta = np.array([W["th0"], W["th1"], u_prev])
         aseq = self._aseq[i] if (target == K.LEAD and s.use_lead_accel) else None
         q = qp.linear_term(theta, aseq)
-        m = int(W[i, K.W_MODE_PRE])
+        m = int(W["mode_pre"])
         backend, res = self._solve_backend(i, cruise, m == K.EMERGENCY, q)
         total_iter = res.iterations
         # escalation while the QP needs slack: decelerating, then an emergency braking as hard
         # as needed (a_need), then the vehicle's whole braking range (a_need = -inf)
-        a_need = W[i, K.W_ANEED]
+        a_need = W["a_need"]
         escalate = {K.ACCELERATE: [(K.BRAKE, a_need), (K.EMERGENCY, a_need), (K.EMERGENCY, -np.inf)],
                     K.EMERGENCY: [(K.EMERGENCY, -np.inf)]}.get(m, [(K.EMERGENCY, a_need), (K.EMERGENCY, -np.inf)])
         while res.ok and res.z[N] > s.slack_tol and escalate:
@@ -828,22 +823,21 @@ class MPCDriver:
             if (m == K.SAIL or m == K.BRAKE) and self._only_chords_short(i, res.z[:N], arrays):
                 break
             m, a_need = escalate.pop(0)
-            lower0, upper0 = K.fill_bounds(self._P, self._S, i, m, v, u_prev, a_need, W[i, K.W_FLOOR0], self._lower,
-                                           self._upper)
-            W[i, K.W_LOWER0], W[i, K.W_UPPER0], W[i, K.W_MODE_PRE] = lower0, upper0, m
+            lower0, upper0 = K.fill_bounds(self._record, i, m, v, u_prev, a_need, float(W["floor0"]))
+            W["lower0"], W["upper0"], W["mode_pre"] = lower0, upper0, m
             if v + s.dt * upper0 <= 0.0:  # stopping inside the step anyway
                 res = None
                 break
             if res.duals is not None:
-                K.store_active(i, res.duals, 1e-10, N, self._act_codes, self._act_count)
+                K.store_active(self._record, i, res.duals, 1e-10)
             backend, res = self._solve_backend(i, cruise, m == K.EMERGENCY, q)
             total_iter += res.iterations
-        upper0 = W[i, K.W_UPPER0]
-        W[i, K.W_ITER] = total_iter
+        upper0 = W["upper0"]
+        W["iterations"] = total_iter
         st = self._stats[i]
         if res is None:
-            W[i, K.W_U0] = upper0
-            W[i, K.W_PATH] = K.HOLD
+            W["u0"] = upper0
+            W["path"] = K.HOLD
             st[K.ST_HOLD] += 1
             self.mode[i] = m if m == K.EMERGENCY else K.BRAKE  # stopping inside the step: the brake holds it
             st[K.ST_EMERGENCY] += m == K.EMERGENCY
@@ -851,14 +845,14 @@ class MPCDriver:
             return
         if res.ok:
             z = res.z
-            u0 = min(max(z[0], W[i, K.W_LOWER0]), upper0)  # solver tolerance never leaves the box
+            u0 = min(max(z[0], W["lower0"]), upper0)  # solver tolerance never leaves the box
             self._plan[i] = z[:N]
-            W[i, K.W_SLACK] = z[N]
-            W[i, K.W_U0] = u0
+            W["slack"] = z[N]
+            W["u0"] = u0
             st[K.ST_QP] += 1
             st[K.ST_SLACK] += z[N] > s.slack_tol
             if res.duals is not None:
-                K.store_active(i, res.duals, 1e-10, N, self._act_codes, self._act_count)
+                K.store_active(self._record, i, res.duals, 1e-10)
             else:
                 self._act_count[i] = 0
             if m == K.EMERGENCY or m == K.ACCELERATE:
@@ -866,13 +860,13 @@ class MPCDriver:
                 st[K.ST_EMERGENCY] += m == K.EMERGENCY
             else:
                 # SAIL: the pedals released (the coasting deceleration); harder: BRAKE; above it: still ACCELERATE
-                self.mode[i] = K.decel_label(u0, K.coast_decel(self._P, self._S, i, v), 1e-6)
+                self.mode[i] = K.decel_label(u0, K.coast_decel(self._record, i, v), 1e-6)
             return
         # --- fallback: stop behind the most demanding real target at x_min, or keep the plan
-        W[i, K.W_PATH] = K.FALLBACK
+        W["path"] = K.FALLBACK
         st[K.ST_FALLBACK] += 1
         self._act_count[i] = 0
-        x_min = self._P[i, K.X_MIN]
+        x_min = float(self._drivers[i]["x_min"])
         a_need = np.inf
         gap, v_lead, stop_gap = arrays[2][i], arrays[3][i], arrays[5][i]
         for R, vt in ((gap, v_lead), (stop_gap + x_min, 0.0)):
@@ -881,9 +875,9 @@ class MPCDriver:
         planned = self._plan[i, 1]
         a_lo = float(accel_lower(v, self.vehicle.take(i)))
         u0 = float(np.clip(min(planned, a_need), a_lo, max(upper0, a_lo)))
-        W[i, K.W_U0] = u0
+        W["u0"] = u0
         self._plan[i, :-1] = self._plan[i, 1:]
-        self.mode[i] = K.EMERGENCY if u0 < self._P[i, K.A_MIN] else (K.BRAKE if u0 < 0 else K.ACCELERATE)
+        self.mode[i] = K.EMERGENCY if u0 < self._drivers[i]["a_min"] else (K.BRAKE if u0 < 0 else K.ACCELERATE)
         st[K.ST_EMERGENCY] += self.mode[i] == K.EMERGENCY
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from acc_gym.drivers import _mpc_kernel as K
 from acc_gym.drivers.base import Observation
 from acc_gym.drivers.mpc import MPCDriver, MPCDriverParams
 from acc_gym.drivers.population import sample_driver_values, sample_drivers
@@ -74,16 +73,16 @@ def test_lazy_follow_equals_the_eager_install_and_condenses_only_what_is_used():
     for i, p in enumerate(fresh):
         lazy.set_params(i, p)
     assert condensed_qp.cache_info().misses == start + 4  # the four cruise QPs only
-    assert lazy._I[:, K.I_FOLLOW_PENDING].tolist() == [1, 1, 1, 1]
+    assert lazy._state["follow_pending"].tolist() == [1, 1, 1, 1]
     misses = []
     got = run(lazy, after=lambda k: misses.append(condensed_qp.cache_info().misses - start))
     # nothing ahead before step 10; rows 0 and 1 meet their lead at step 10, row 2 its stop at 25
     assert misses[9] == 4 and misses[10] == 6 and misses[24] == 6 and misses[25] == 7 and misses[-1] == 7
-    assert lazy._I[:, K.I_FOLLOW_PENDING].tolist() == [0, 0, 0, 1]
+    assert lazy._state["follow_pending"].tolist() == [0, 0, 0, 1]
     assert lazy._qp_follow[3] is None  # row 3 never had a target: its follow QP was never condensed
 
     eager = MPCDriver(MPCDriverParams.stack(fresh))  # both QPs installed up front
-    assert eager._I[:, K.I_FOLLOW_PENDING].tolist() == [0, 0, 0, 0]
+    assert eager._state["follow_pending"].tolist() == [0, 0, 0, 0]
     want = run(eager)
     assert_same(got, want)
     assert any(m[0] != 0 for _, _, m in want[10:]) and any(m[2] != 0 for _, _, m in want[25:])  # targets mattered
@@ -102,9 +101,9 @@ def test_reset_keeps_the_pending_follow_qps():
     for driver in (lazy, eager):  # the same history: five steps without a target, then reset()
         run(driver, steps=5)
         driver.reset()
-    assert lazy._I[:, K.I_FOLLOW_PENDING].tolist() == [1, 1, 1, 1]
+    assert lazy._state["follow_pending"].tolist() == [1, 1, 1, 1]
     assert_same(run(lazy), run(eager))
-    assert lazy._I[:, K.I_FOLLOW_PENDING].tolist() == [0, 0, 0, 1]
+    assert lazy._state["follow_pending"].tolist() == [0, 0, 0, 1]
 
 
 def test_an_idle_row_does_not_install_its_follow_qp():
@@ -114,4 +113,4 @@ def test_an_idle_row_does_not_install_its_follow_qp():
     for i, p in enumerate(new_params(rng, 4)):
         lazy.set_params(i, p)
     run(lazy, steps=20, idle=np.array([True, False, True, True]))
-    assert lazy._I[:, K.I_FOLLOW_PENDING].tolist() == [1, 0, 1, 1]  # only row 1 had a lead and was not idle
+    assert lazy._state["follow_pending"].tolist() == [1, 0, 1, 1]  # only row 1 had a lead and was not idle

@@ -303,7 +303,7 @@ def test_law_selection_uses_the_predicted_lead_deceleration():
         d.act(Observation.build(v=v, a=up, gap=gap, v_lead=vl, a_lead=al))
         # the decision (before the solve) was ACCELERATE; an escalated decelerating plan that
         # still eases off the throttle is labelled ACCELERATE too, but chose its law decelerating
-        if d.info["mode"][0] != Mode.ACCELERATE or d._W[0, K.W_MODE_PRE] != K.ACCELERATE:
+        if d.info["mode"][0] != Mode.ACCELERATE or d._out[0]["mode_pre"] != K.ACCELERATE:
             continue
         p, fol, cru = d.params, d._qp_follow[0], d._qp_cruise[0]
         theta = np.array([gap - p.x_min[0] - p.c_tg[0] * v, vl - v, up])

@@ -186,11 +186,10 @@ def test_fast_check_equals_the_scan_of_the_written_bounds():
         data = d.qp_data(i)  # writes the bounds if the kernel did not
         for trial in range(5):
             u = rng.normal(0.0, 1.5, N)
-            w = d._W[i]
-            lower0, upper0, env_lo, env_hi, rate = K.mode_limits(d._P, d._S, i, int(w[K.W_MODE_PRE]), v[i],
-                                                                 d._u_prev[i], w[K.W_ANEED], w[K.W_FLOOR0])
-            fast = K._fast_violation(d._P, d._S, i, v[i], u, lower0, upper0, env_lo, env_hi, rate,
-                                     gap[i], d._last_arrays[3][i], stop[i], d._aseq[i])
+            w = d._out[i]
+            limits = K.mode_limits(d._record, i, int(w["mode_pre"]), v[i], d._u_prev[i], float(w["a_need"]),
+                                   float(w["floor0"]))
+            fast = K._fast_violation(d._record, i, v[i], u, limits, gap[i], d._last_arrays[3][i], stop[i])
             full = constraint_violation(np.append(u, 0.0), data["lower"], data["upper"], data["G"])
             assert max(fast, 0.0) == pytest.approx(full, abs=1e-9)  # full also counts s >= 0
 
@@ -242,9 +241,8 @@ def _kernel_solve(qp, data, codes):
     out = np.zeros(n)
     u_unc = -qp.hinv @ data["q"][:n]
     h = qp.horizon
-    ok, m = K._active_set_solve(u_unc, qp.hinv_columns, data["lower"], data["upper"], work, len(codes), n, h.dt,
-                                h.discretisation == "zoh", 1e-7, 1e9, data["beta"], out, sf, sw[0], sw[1], sw[2], ss[0],
-                                ss[1])
+    ok, m = K._active_set_solve(u_unc, qp.hinv_columns, data["lower"], data["upper"], len(codes),
+                                (n, h.dt, h.discretisation == "zoh", data["beta"]), (1e-7, 1e9), out, (sf, sw, ss, work))
     return ok, out, work[:m].copy()
 
 
