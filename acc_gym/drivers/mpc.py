@@ -102,7 +102,7 @@ import numpy as np
 from acc_gym._validation import check_finite
 from acc_gym.drivers import _mpc_kernel as K
 from acc_gym.drivers.base import Observation
-from acc_gym.drivers.qp import K_TERM, Horizon, condensed_qp, make_backend, terminal_chords
+from acc_gym.drivers.qp import Horizon, condensed_qp, make_backend, terminal_chords
 from acc_gym.vehicle import VehicleParams, accel_lower
 
 
@@ -490,33 +490,27 @@ class MPCDriver:
         if cur.v_max is None and params.v_max is not None:
             object.__setattr__(cur, "v_max", np.array(cur.speed_limit, dtype=float))
         values = params.__dict__
-        if idx.size == 1 and all(values[name] is None or type(values[name]) is float or np.ndim(values[name]) == 0
-                                 for name in _FIELD_NAMES):
-            i = int(idx[0])  # one driver, plain numbers: no broadcast copies (resets are hot)
-            limit = values["v_desired"] if values["v_max"] is None else values["v_max"]
-            for name in _FIELD_NAMES:
-                target = getattr(cur, name)
-                if target is not None:
-                    value = values[name]
-                    target[i] = limit if value is None else value
-            self._install(i)
-            return
+        rows = idx
+        if all(values[name] is None or type(values[name]) is float or np.ndim(values[name]) == 0
+               for name in _FIELD_NAMES):
+            if idx.size == 1:
+                rows = int(idx[0])  # one driver, plain numbers (a reset's): written in place, no index arrays
         else:
-            new = params.broadcast(idx.size)
-            for f in fields(MPCDriverParams):
-                target = getattr(cur, f.name)
-                if target is None:
-                    continue
-                value = getattr(new, f.name)
-                target[idx] = new.speed_limit if value is None else value
-        p = cur
+            values = params.broadcast(idx.size).__dict__  # one value per driver (checks the sizes)
+        limit = values["v_desired"] if values["v_max"] is None else values["v_max"]
+        for name in _FIELD_NAMES:
+            target = getattr(cur, name)
+            if target is not None:
+                value = values[name]
+                target[rows] = limit if value is None else value
+        limit_col = cur.v_desired if cur.v_max is None else cur.v_max  # speed_limit, without its array copy
         d = self._drivers
         for c in K.DRIVER_PARAMS:
-            d[c][idx] = np.asarray(p.speed_limit if c == "v_max" else getattr(p, c), float)[idx]
-        self._alpha[idx], self._beta[idx] = terminal_chords(p.a_min[idx], p.jerk_max[idx], p.speed_limit[idx])
+            d[c][rows] = (limit_col if c == "v_max" else getattr(cur, c))[rows]
+        self._alpha[rows], self._beta[rows] = terminal_chords(cur.a_min[rows], cur.jerk_max[rows], limit_col[rows])
         for i in idx.tolist():
             self._install_qps(i)
-        self._restart(idx)
+        self._restart(rows)
 
     def _restart(self, idx) -> None:
         """Drivers ``idx`` (an int or an index array) from the start: no mode, working set,
@@ -527,28 +521,6 @@ class MPCDriver:
         self._aseq[idx] = 0.0
         self._out[idx] = 0
         self._out["path"][idx] = -1
-
-    def _install(self, i: int) -> None:
-        """The rest of :meth:`set_params` for one driver ``i`` whose parameters are already in
-        :attr:`params`: the same rows written with Python floats instead of small arrays
-        (the terminal chords by :func:`~acc_gym.drivers.qp.terminal_chords`'s operations in
-        its order, so the same values exactly; ``tests/drivers/test_fast_paths.py`` checks it)."""
-        p = self.params
-        limit_col = p.v_desired if p.v_max is None else p.v_max  # speed_limit, without its array copy
-        row = [float((limit_col if c == "v_max" else getattr(p, c))[i]) for c in K.DRIVER_PARAMS]
-        b = -float(p.a_min[i])
-        jerk = float(p.jerk_max[i])
-        limit = row[K.DRIVER_PARAMS.index("v_max")]
-        w = [limit * k / K_TERM for k in range(K_TERM + 1)]
-        f = [x * x / (2.0 * b) + x * b / (2.0 * jerk) for x in w]
-        beta = [(f[k + 1] - f[k]) / (w[k + 1] - w[k]) for k in range(K_TERM)]
-        alpha = [f[k] - beta[k] * w[k] for k in range(K_TERM)]
-        d = self._drivers[i]
-        for c, value in zip(K.DRIVER_PARAMS, row):
-            d[c] = value
-        self._alpha[i], self._beta[i] = alpha, beta
-        self._install_qps(i)
-        self._restart(i)
 
     def _condensed(self, q1: float, q2: float, r1: float, c_tg: float, r_jerk: float):
         """The follow and cruise QPs of one driver configuration, from

@@ -109,61 +109,70 @@ class SlotDrivers:
                 self._mpc.set_params(rows, self._mpc.params.take(rows))
         # baseline rows restart with the clocks: a row's delay history is read by its clock
 
-    def _path(self) -> str:
-        """How a step of the current kinds of rows runs, decided again only when the kinds
-        change or the baseline rows come to have (or lose) a reaction delay or a law outside the
-        compiled loop (:meth:`BaselineRows.delayed`, :meth:`BaselineRows.all_compiled`):
-        ``"mpc"`` (every row an MPC driver), ``"mpc+idle"`` (MPC drivers, absent vehicles
-        and profiles: the MPC array path with the other rows skipped by its kernel), ``"baselines"``
-        (baseline models without a reaction delay, absent vehicles and profiles: each model's
-        compiled law on the rows as they are), ``"mixed"``."""
+    def _refresh(self) -> None:
+        """The rows' kinds as a step reads them (which rows hold an MPC driver, profiles, baseline
+        models; whether :meth:`act_world` is one compiled call), worked out again only when the
+        kinds change or the baseline rows come to have (or lose) a reaction delay or a law
+        outside the compiled loop (:meth:`BaselineRows.delayed`, :meth:`BaselineRows.all_compiled`).
+        The MPC batch is told which rows to skip (:meth:`MPCDriver.set_idle
+        <acc_gym.drivers.mpc.MPCDriver.set_idle>`): their output is not used."""
         b = self._baseline
         delayed, compiled = b.delayed(), b.all_compiled()
-        seen = (self.kind.tobytes(), delayed, compiled)  # what the path depends on
-        if seen != getattr(self, "_path_seen", None):
-            self._path_seen = seen
-            counts = np.bincount(self.kind, minlength=4)  # rows per kind (none, mpc, profile, baseline)
-            is_mpc = self.kind == 1
-            if self._mpc is not None:  # the kernel skips the rows without an MPC driver (their output is unused)
-                self._mpc.set_idle(~is_mpc)
-            self._profile_rows = np.flatnonzero(self.kind == 2) if counts[2] else np.zeros(0, dtype=np.int64)
-            self._has_profiles = bool(counts[2])
-            self._has_baselines = bool(counts[3])
-            if self._mpc is not None and counts[1] == self.n:
-                self._path_cached = "mpc"
-            elif self._mpc is not None and counts[1] and not self._has_baselines:
-                self._path_cached = "mpc+idle"
-                self._is_mpc = is_mpc
-                self._idle = np.flatnonzero(~is_mpc)
-            elif not counts[1] and not delayed:
-                self._path_cached = "baselines"
-                self._compiled_laws = compiled  # every baseline row's law compiled (a MODELS class): one call
-            else:
-                self._path_cached = "mixed"
-        return self._path_cached
-
-    def _all_mpc(self) -> bool:
-        return self._path() == "mpc"
+        seen = (self.kind.tobytes(), delayed, compiled)  # what the step depends on
+        if seen == getattr(self, "_seen", None):
+            return
+        self._seen = seen
+        counts = np.bincount(self.kind, minlength=4)  # rows per kind (none, mpc, profile, baseline)
+        self._is_mpc = self.kind == 1
+        self._n_mpc = int(counts[1])
+        if self._mpc is not None:
+            self._mpc.set_idle(~self._is_mpc)
+        self._profile_rows = np.flatnonzero(self.kind == 2) if counts[2] else np.zeros(0, dtype=np.int64)
+        self._has_profiles = bool(counts[2])
+        self._has_baselines = bool(counts[3])
+        # baseline models without a reaction delay (every law a MODELS class's), profiles and absent
+        # vehicles only: act_world is one compiled call (_baseline_kernels.slot_laws)
+        self._compiled = not counts[1] and not delayed and compiled
 
     # ------------------------------------------------------------------ step
+    def act(self, obs: Observation) -> np.ndarray:
+        """Every row's desired acceleration [m/s^2] for the observation ``obs`` (0 where no
+        vehicle is)."""
+        return self._act(obs, lambda: self._mpc.act(obs))
+
     def act_rows(self, rows: np.ndarray) -> np.ndarray:
-        """:meth:`act` for an observation given as rows of one float64 array (see
-        :meth:`MPCDriver.act_rows <acc_gym.drivers.mpc.MPCDriver.act_rows>`): when every
-        scene's driver is an MPC driver, the batch takes that cheaper path; otherwise
-        :meth:`act` on the :class:`~acc_gym.drivers.base.Observation` of the rows."""
-        path = self._path()
-        if path == "mpc+idle":
-            return self._act_rows_mpc_and_idle(rows)
-        if path == "baselines":
-            return self._act_rows_baselines(rows)
-        if path == "mixed":
-            return self.act(Observation(*rows))
+        """:meth:`act` for an observation given as rows of one float64 array ``(>= 5, n)`` in
+        :class:`~acc_gym.drivers.base.Observation`'s field order (what the world observes; see
+        :meth:`MPCDriver.act_rows <acc_gym.drivers.mpc.MPCDriver.act_rows>`): the same numbers,
+        without building the observation."""
+        rows = np.asarray(rows, dtype=float)
+        return self._act(_RowFields(rows), lambda: self._mpc.act_rows(rows))
+
+    def _act(self, obs, mpc_act) -> np.ndarray:
+        """The step of :meth:`act` and :meth:`act_rows`: ``obs`` has Observation's fields,
+        ``mpc_act()`` steps the MPC batch on it (its rows without an MPC driver are skipped and
+        give 0); then the profiles are played and the baseline models' laws run on their rows."""
+        self._refresh()
         mpc = self._mpc
-        out = mpc.act_rows(rows)
-        self.fallbacks[:] = mpc.stats_column("fallback")
-        # no clock tick: only profile rows read their clock, and a row becomes one only through
-        # assign(), which restarts its clock (the tick costs as much as the rest of this bookkeeping)
-        self.info = {"mode": mpc.mode.copy()}
+        if self._n_mpc:
+            out = mpc_act()
+            if self._n_mpc == self.n:
+                mode = mpc.mode.copy()
+                self.fallbacks[:] = mpc.stats_column("fallback")
+            else:
+                is_mpc = self._is_mpc
+                mode = np.full(self.n, -1, dtype=np.int64)
+                mode[is_mpc] = mpc.mode[is_mpc]
+                self.fallbacks[is_mpc] = mpc.stats_column("fallback")[is_mpc]
+        else:
+            out = np.zeros(self.n)
+            mode = self._no_modes
+        if self._has_profiles:
+            self._play_profiles(np.asarray(obs.v), out)
+        if self._has_baselines:
+            self._baseline.act(obs, self._clock, out)
+        self._clock += 1
+        self.info = {"mode": mode}
         return out
 
     def act_world(self, obs: np.ndarray, a_des: np.ndarray) -> None:
@@ -194,74 +203,19 @@ class SlotDrivers:
         every row's mode -1, as after such a call; else None. A caller that runs the laws
         itself over several steps (:meth:`SingleLaneWorld.coast
         <acc_gym.simulation.single_lane.SingleLaneWorld.coast>`) takes them from here."""
-        if not (self._path() == "baselines" and self._compiled_laws):
+        self._refresh()
+        if not self._compiled:
             return None
         self.info = {"mode": self._no_modes}
         b = self._baseline
         return self.kind, b.law_kind, b.law_params, b.law_two, self.dt, self._profile, self._clock
 
-    def _act_rows_mpc_and_idle(self, rows: np.ndarray) -> np.ndarray:
-        """:meth:`act` on observation rows when the rows hold MPC drivers, absent vehicles and
-        scripted profiles only (the single environment's 1- and 2-vehicle scenes): the MPC
-        batch takes its array path on the rows as they are, its kernel skipping the other
-        rows (marked idle by :meth:`_path`; the same numbers as :meth:`act`)."""
-        mpc = self._mpc
-        is_mpc = self._is_mpc
-        out = mpc.act_rows(rows)  # 0 on the idle rows: the kernel writes nothing else there
-        mode = mpc.mode.copy()
-        mode[self._idle] = -1
-        self.fallbacks[is_mpc] = mpc.stats_column("fallback")[is_mpc]
-        if self._has_profiles:
-            self._play_profiles(rows[0], out)
-        self._clock += 1
-        self.info = {"mode": mode}
-        return out
-
-    def _act_rows_baselines(self, rows: np.ndarray) -> np.ndarray:
-        """:meth:`act` on observation rows when the rows hold baseline models without a
-        reaction delay, absent vehicles and profiles only (``drivers="idm"`` and the like):
-        each model's compiled law on its group's rows, reading the rows in place (no delay
-        ring to fill, no MPC batch), the profiles played, the rest 0 -- the same numbers as
-        :meth:`act` (tests/drivers/test_slots.py)."""
-        out = np.zeros(self.n)
-        if self._has_profiles:
-            self._play_profiles(rows[0], out)
-        obs = _RowFields(rows)
-        for model, grp, _ in self._baseline._groups():
-            model.act_into(obs, obs, grp, out)
-        self._clock += 1
-        self.info = {"mode": self._no_modes}
-        return out
-
     def _play_profiles(self, v: np.ndarray, out: np.ndarray) -> None:
         """The profile rows' accelerations to their next speed sample (speeds ``v``) into ``out``
-        (rows from :meth:`_path`, which runs first in every step)."""
+        (rows from :meth:`_refresh`, which runs first in every step)."""
         rows = self._profile_rows
         k = np.minimum(self._clock[rows] + 1, self._profile.shape[1] - 1)
         out[rows] = (self._profile[rows, k] - v[rows]) / self.dt
-
-    def act(self, obs: Observation) -> np.ndarray:
-        if self._all_mpc():  # the common case (every scene's slot has an MPC driver): no masks
-            out = self._mpc.act(obs)
-            self.fallbacks[:] = self._mpc.stats_column("fallback")
-            self._clock += 1
-            self.info = {"mode": self._mpc.mode.copy()}
-            return out
-        out = np.zeros(self.n)
-        mode = np.full(self.n, -1, dtype=np.int64)
-        if self._mpc is not None and np.any(self.kind == 1):
-            is_mpc = self.kind == 1
-            a = self._mpc.act(obs)  # the rows without an MPC driver are skipped (marked idle by _path)
-            out[is_mpc] = a[is_mpc]
-            mode[is_mpc] = self._mpc.mode[is_mpc]
-            self.fallbacks[is_mpc] = self._mpc.stats_column("fallback")[is_mpc]
-        if self._has_profiles:
-            self._play_profiles(np.asarray(obs.v), out)
-        if self._has_baselines:
-            self._baseline.act(obs, self._clock, out)
-        self._clock += 1
-        self.info = {"mode": mode}
-        return out
 
 
 class BaselineRows:
@@ -410,15 +364,14 @@ class BaselineRows:
         """Write the baseline rows' desired accelerations into ``out``; ``clock[row]`` is the
         number of steps the row's driver has taken."""
         groups = self._groups()
-        size = self._ring.shape[2]
-        present = [i for i, name in enumerate(self._FIELDS) if getattr(obs, name) is not None]
+        seen = obs
         if self._delayed:  # the ring is kept only while some row has a reaction delay
+            size = self._ring.shape[2]
+            present = [i for i, name in enumerate(self._FIELDS) if getattr(obs, name) is not None]
             rows = self.rows
             k = clock[rows] % size
             for i in present:
                 self._ring[i, rows, k] = getattr(obs, self._FIELDS[i])[rows]
-        seen = obs
-        if any(delayed for _, _, delayed in groups):
             every = np.arange(self.n)
             back = np.maximum(clock - self._delay, 0) % size
             seen = Observation(**{name: (self._ring[i, every, back] if i in present else None)

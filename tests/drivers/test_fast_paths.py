@@ -163,9 +163,9 @@ def test_act_rows_rejects_invalid_values_naming_the_field():
         driver.act_rows(random_rows(np.random.default_rng(3), 4))
 
 
-def test_scalar_set_params_equals_the_array_path():
-    """One driver given plain numbers (a reset's path, compiled chords in Python floats) ends
-    with the rows a one-element array batch writes through the general path."""
+def test_plain_number_params_restart_a_driver_as_one_element_arrays_do():
+    """``set_params`` of one driver given plain numbers (a reset's) and given one-element arrays
+    (converted by ``MPCDriverParams.broadcast``) leave the same kernel rows and QPs."""
     rng = np.random.default_rng(5)
     batch = sample_drivers(rng, 6, rng.uniform(5.0, 35.0, 6))
     fast, ref = MPCDriver(batch), MPCDriver(batch)
@@ -174,7 +174,7 @@ def test_scalar_set_params_equals_the_array_path():
         if k % 4:  # the first draw leaves v_max unset (the driver's limit is then v_desired)
             values["v_max"] = values["v_desired"] + (1.0 if k % 2 else 0.0)
         i = int(rng.integers(0, 6))
-        fast.set_params(i, MPCDriverParams(**values))  # plain numbers: _install
+        fast.set_params(i, MPCDriverParams(**values))  # plain numbers
         ref.set_params(np.array([i]), MPCDriverParams(**{key: np.array([v]) for key, v in values.items()}))
         for name in DRIVER_STATE:
             assert np.array_equal(getattr(fast, name), getattr(ref, name)), (k, name)

@@ -194,13 +194,12 @@ def test_rows_path_of_undelayed_baselines_absent_and_profile_rows_equals_each_dr
         o = obs_for(5, k)
         rows = np.array([o.v, o.a, o.gap, o.v_lead, o.a_lead, o.gap + 25.0, o.v_lead + 0.5, np.zeros(5)])
         out = slot.act_rows(rows)
-        paths.append(slot._path())
+        paths.append(slot.compiled_laws() is not None)  # act_world would be one compiled call
         seen = Observation(*rows)
         for row, model in alone.items():
             assert out[row] == model.act(seen.take([row]))[0], (k, row)
         assert out[2] == 0.0 and np.all(slot.info["mode"] == -1)
-    assert paths[:10] == ["baselines"] * 10 and paths[10:20] == ["mixed"] * 10
-    assert paths[20:] == ["baselines"] * 10
+    assert paths == [True] * 10 + [False] * 10 + [True] * 10  # not while a row has a reaction delay
 
 
 # undelayed settings of every baseline model (Gipps, GM, Pipes, Newell and Tyler perceive late by default)
@@ -261,7 +260,7 @@ def test_act_world_equals_act_rows_on_the_gathered_rows(with_mpc):
         world.act_world(obs, a_des)
         rows = np.ascontiguousarray(obs[1:].transpose(1, 0, 2)).reshape(8, n)
         ref = rows_path.act_rows(rows)
-        assert world._path() == ("mixed" if with_mpc else "baselines")
+        assert (world.compiled_laws() is None) == with_mpc
         assert np.all(a_des[:, 0] == 7.0)  # the ego's column is the caller's
         assert np.array_equal(a_des[:, 1:].T.ravel(), ref), k
         assert np.array_equal(world.info["mode"], rows_path.info["mode"])
@@ -269,7 +268,7 @@ def test_act_world_equals_act_rows_on_the_gathered_rows(with_mpc):
         for r, model in alone.items():
             assert a_des[r % B, 1 + r // B] == model.act(seen.take([r]))[0], (k, r)
         assert a_des[11 % B, 1 + 11 // B] == 0.0  # the absent vehicle
-    assert with_mpc or world._compiled_laws  # the compiled call ran
+    assert with_mpc or world._compiled  # the compiled call ran
 
 
 def test_baseline_rows_short_assign_path_equals_building_the_model():
@@ -452,9 +451,8 @@ def test_the_path_follows_the_counted_delays_and_laws_through_assignments():
         assigned = b._group >= 0
         assert b.delayed() == bool(np.any(b._delay[assigned] > 0)) == bool(np.any(b._delay > 0)), step
         assert b.all_compiled() == bool(np.all(b.law_kind[assigned] >= 0)), step
-        path = slot._path()
         compiled = slot.compiled_laws() is not None
-        slot._path_seen = None  # worked out afresh
-        assert (slot._path(), slot.compiled_laws() is not None) == (path, compiled), step
-        paths.add((path, compiled))
-    assert paths == {("baselines", True), ("baselines", False), ("mixed", False)}
+        slot._seen = None  # worked out afresh
+        assert (slot.compiled_laws() is not None) == compiled, step
+        paths.add((b.delayed(), compiled))
+    assert paths == {(False, True), (False, False), (True, False)}  # (a reaction delay, one compiled call)
