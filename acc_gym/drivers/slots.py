@@ -210,6 +210,12 @@ class SlotDrivers:
         b = self._baseline
         return self.kind, b.law_kind, b.law_params, b.law_two, self.dt, self._profile, self._clock
 
+    @property
+    def stats(self) -> dict[str, np.ndarray]:
+        """Per-row running counts of the MPC drivers' solver (steps, solve paths, slack and
+        emergency steps; 0 on rows that never held one); empty without MPC drivers."""
+        return {} if self._mpc is None else self._mpc.stats
+
     def _play_profiles(self, v: np.ndarray, out: np.ndarray) -> None:
         """The profile rows' accelerations to their next speed sample (speeds ``v``) into ``out``
         (rows from :meth:`_refresh`, which runs first in every step)."""

@@ -2,20 +2,19 @@
 
 ``make_world(scenarios)`` builds one world for a batch of scenarios (same step ``dt``):
 slot 0 the ego, slot 1 the POV, slot 2 the POV2 (absent where a scenario has none). The
-surrounding drivers of each slot are grouped by model, so all MPC drivers of a slot
-are one batched :class:`~acc_gym.drivers.mpc.MPCDriver` whatever mix of scenarios the
-batch holds. ``simulate(scenario, ego)`` runs one scenario with an ego model to its end.
+surrounding drivers of each slot are a :class:`~acc_gym.drivers.slots.SlotDrivers`, as in
+the environments, so all MPC drivers of a slot are one batched
+:class:`~acc_gym.drivers.mpc.MPCDriver` whatever mix of scenarios the batch holds. ``simulate(scenario, ego)`` runs one scenario with an ego model to its end.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
-from acc_gym.drivers.baselines import MODELS
-from acc_gym.drivers.mpc import MPCDriver, MPCDriverParams, MPCSettings
-from acc_gym.drivers.scripted import DriverGroup, ProfileDriver
+from acc_gym.drivers.mpc import MPCSettings
+from acc_gym.drivers.slots import SlotDrivers
 from acc_gym.scenarios.spec import ROLES, Scenario
 from acc_gym.simulation.single_lane import LateralPlan, SingleLaneWorld, WorldTrace, rollout
 from acc_gym.vehicle import VehicleParams
@@ -23,44 +22,19 @@ from acc_gym.vehicle import VehicleParams
 ABSENT_X = -1.0e6  # [m] where absent vehicles are parked (never anyone's target)
 
 
-def _stack_params(cls, objs):
-    values = {}
-    for f in fields(cls):
-        vals = [getattr(o, f.name) for o in objs]
-        if all(v is None for v in vals):
-            values[f.name] = None
-        elif isinstance(vals[0], (int, np.integer)) and not isinstance(vals[0], bool) and f.name == "predecessors":
-            values[f.name] = int(vals[0])
-        else:
-            values[f.name] = np.array([float(np.asarray(v, float)) for v in vals])
-    return cls(**values)
-
-
 def _slot_driver(specs, dt: float, mpc_settings: MPCSettings | None):
-    """One model over the batch for a slot: ``specs[b]`` is a DriverSpec or None (absent)."""
-    B = len(specs)
-    groups: dict[str, list[int]] = {}
-    for b, spec in enumerate(specs):
-        if spec is not None:
-            groups.setdefault(spec.model, []).append(b)
-    if not groups:
+    """The drivers of a slot over the batch, as the environments hold them
+    (:class:`~acc_gym.drivers.slots.SlotDrivers`): ``specs[b]`` is scene ``b``'s DriverSpec or
+    None (absent); None when no scene has a vehicle in the slot."""
+    if all(spec is None for spec in specs):
         return None
-    parts = []
-    for model, idx in groups.items():
-        if model == "mpc":
-            params = MPCDriverParams.stack([specs[b].params_object() for b in idx])
-            settings = mpc_settings if mpc_settings is not None else MPCSettings(dt=dt)
-            if settings.dt != dt:
-                raise ValueError(f"MPC settings dt={settings.dt} differs from the scenarios' dt={dt}")
-            parts.append((MPCDriver(params, n=len(idx), settings=settings), idx))
-        elif model == "profile":
-            for b in idx:
-                parts.append((ProfileDriver(specs[b].profile(), n=1, dt=dt), [b]))
-        else:
-            cls = MODELS[model]
-            params = _stack_params(cls.params_type, [specs[b].params_object() for b in idx])
-            parts.append((cls(params, n=len(idx), dt=dt), idx))
-    return DriverGroup(parts, B)
+    settings = mpc_settings if mpc_settings is not None else MPCSettings(dt=dt)
+    if settings.dt != dt:
+        raise ValueError(f"MPC settings dt={settings.dt} differs from the scenarios' dt={dt}")
+    slot = SlotDrivers(len(specs), dt, settings)
+    for b, spec in enumerate(specs):
+        slot.assign(b, spec)
+    return slot
 
 
 @dataclass

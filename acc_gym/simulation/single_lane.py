@@ -25,7 +25,7 @@ Each step has two phases: every model decides from the same snapshot, then every
 vehicle moves (exact integration, no reversing; :mod:`acc_gym.vehicle`). Slot 0 is
 driven by the caller's action (or by a model); the other slots by driver models that
 each control one vehicle per scene (``n == B``, e.g. a
-:class:`~acc_gym.drivers.scripted.DriverGroup`). Absent vehicles (``present`` false) are
+:class:`~acc_gym.drivers.slots.SlotDrivers`). Absent vehicles (``present`` false) are
 never anyone's target and do not move.
 """
 
