@@ -65,9 +65,7 @@ DRIVER_VEHICLE = DRIVER.names[10:]
 # one driver's state between steps
 DRIVER_STATE = np.dtype([
     ("mode", np.int64),
-    ("n_active", np.int64),  # the size of its working set ...
-    ("active", np.int64, (MAX_ACTIVE,)),  # ... codes 2 c + side (side 1: upper bound)
-    ("stats", np.int64, (N_STATS,)),  # running counts, ST_* order
+    ("n_active", np.int64),  # the size of its working set (its codes: the record's ``active`` rows)
     ("idle", np.int64),  # 1: the row has no driver this step (skipped: output 0, path -1, no statistics)
     ("follow_pending", np.int64),  # 1: its follow QP (gains, H^-1 sums) is not installed yet
 ])
@@ -135,6 +133,8 @@ MPC_FIELDS = MPC_SETTINGS + (
     ("plan", _F2),  # (n, N) [m/s^2]
     ("aseq", _F2),  # (n, N) [m/s^2] the lead's predicted accelerations
     ("state", types.Array(numba.from_dtype(DRIVER_STATE), 1, "C")),  # (n,)
+    ("active", _I2),  # (n, MAX_ACTIVE) working sets, codes 2 c + side (side 1: upper bound)
+    ("stats", _I2),  # (n, N_STATS) running counts, ST_* order
     ("out", types.Array(numba.from_dtype(STEP), 1, "C")),  # (n,)
     ("hard", _I1),  # (n,) prepare's list of rows (its second return value counts them)
     ("sf", _F2), ("sc", _I2),  # per-thread scratch (scratch())
@@ -152,8 +152,8 @@ def make_mpc(s, a):  # pragma: no cover - compiled
     r.brake_slack_tol, r.follow_in_range = s[12], s[13]
     r.drivers, r.alpha, r.beta, r.gain_f, r.gain_c, r.gain_lead, r.hinv_f, r.hinv_c = (
         a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7])
-    r.lower, r.upper, r.plan, r.aseq, r.state, r.out, r.hard, r.sf, r.sc = (
-        a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15], a[16])
+    r.lower, r.upper, r.plan, r.aseq, r.state, r.active, r.stats, r.out, r.hard, r.sf, r.sc = (
+        a[8], a[9], a[10], a[11], a[12], a[13], a[14], a[15], a[16], a[17], a[18])
     return r
 
 
@@ -1043,7 +1043,7 @@ def _one(i, r, obs, scratch):
     zoh = r.zoh
     use_acc = r.use_lead_accel
     warm = r.warm_active_set
-    stats = st.stats
+    stats = r.stats[i]
     stats[ST_STEPS] += 1
     v = v0[i]
     up = u_prev[i]
@@ -1261,14 +1261,14 @@ def _one(i, r, obs, scratch):
         # --- warm active set: last step's, shifted along the horizon
         m0 = min(st.n_active, MAX_ACTIVE)
         for a in range(m0):
-            codes[a] = st.active[a]
+            codes[a] = r.active[i, a]
         m0 = _shift_active(codes, m0, n)
         hc = r.hinv_c[i] if target == CRUISE else r.hinv_f[i]
         ok, ma = _active_set_solve(u_unc, hc, lower[i], upper[i], m0, (n, dt, zoh, beta), (r.feas_tol, r.slack_linear),
                                    plan[i], scratch)
         # remember the working set either way: the solution's, or a warm start for the backend
         for a in range(ma):
-            st.active[a] = codes[a]
+            r.active[i, a] = codes[a]
         st.n_active = ma
         if ok:
             path = ACTIVE_SET
@@ -1346,6 +1346,11 @@ def _make_prepare(parallel):
     (:data:`STEP`), its state in ``r.state`` (:data:`DRIVER_STATE`), its plan and bounds in
     ``r.plan``, ``r.lower``, ``r.upper``.
     """
+    # each variant its own name, hence its own numba cache index: two variants under one index
+    # (the same qualname and line) can be crossed when two processes compile them at once (the
+    # index written by one, a data file by the other): a process then loads the other variant's
+    # code (seen as wrong numbers and crashes under pytest-xdist with a fresh cache)
+    prepare.__name__ = prepare.__qualname__ = "prepare_parallel" if parallel else "prepare"
     return prepare
 
 
@@ -1371,7 +1376,7 @@ def store_active(r, i, lam, tol):
     """Remember the active set of a backend solution ``lam`` (lam > 0: upper, < 0: lower
     bound; the slack's entry, at index N, skipped) as driver ``i``'s working set."""
     st = r.state[i]
-    active = st.active
+    active = r.active[i]
     n = r.plan.shape[1]
     m = 0
     for c in range(lam.shape[0]):

@@ -420,6 +420,8 @@ class MPCDriver:
         self._plan = np.zeros((n, N))
         self._aseq = np.zeros((n, N))
         self._state = np.zeros(n, K.DRIVER_STATE)
+        self._active = np.zeros((n, K.MAX_ACTIVE), dtype=np.int64)  # working sets (codes; counts in _state)
+        self._stats = np.zeros((n, K.N_STATS), dtype=np.int64)  # running counts, _STAT_NAMES order
         self._out = np.zeros(n, K.STEP)
         self._hard = np.zeros(n, dtype=np.int64)
         self._parallel = n >= K.PARALLEL_MIN_BATCH and s.parallel is not False
@@ -441,6 +443,8 @@ class MPCDriver:
         pending = self._state["follow_pending"].copy()
         self._state[:] = 0  # modes (ACCELERATE = 0), working sets, statistics, idle marks
         self._state["follow_pending"] = pending  # which follow QPs are installed is the drivers', not the episode's
+        self._active[:] = 0
+        self._stats[:] = 0
         self._plan[:] = 0.0
         self._aseq[:] = 0.0
         self._out[:] = 0
@@ -517,6 +521,8 @@ class MPCDriver:
         statistics, plan or step; their follow QPs pending; not idle."""
         self._state[idx] = 0
         self._state["follow_pending"][idx] = 1
+        self._active[idx] = 0
+        self._stats[idx] = 0
         self._plan[idx] = 0.0
         self._aseq[idx] = 0.0
         self._out[idx] = 0
@@ -597,7 +603,7 @@ class MPCDriver:
 
     def __getstate__(self):
         state = self.__dict__.copy()
-        for view in ("mode", "_act_count", "_stats", "_act_codes", "_record", "_last_arrays", "_u_prev"):
+        for view in ("mode", "_act_count", "_record", "_last_arrays", "_u_prev"):
             state.pop(view, None)  # views into the kernel's arrays and its record, re-made in __setstate__
         state["_backends"] = {}  # solver workspaces are rebuilt after unpickling ...
         state["_last_used"] = {}  # ... and start from the kernel's working set
@@ -611,12 +617,10 @@ class MPCDriver:
         """Views into the kernel's arrays by name, and the kernel's record of them."""
         self.mode = self._state["mode"]
         self._act_count = self._state["n_active"]
-        self._stats = self._state["stats"]
-        self._act_codes = self._state["active"]
         self._record = K.record(self._settings, {
             "drivers": self._drivers, "alpha": self._alpha, "beta": self._beta, "gain_f": self._gain_f, "gain_c": self._gain_c, "gain_lead": self._gain_lead,
             "hinv_f": self._hinv_f, "hinv_c": self._hinv_c, "lower": self._lower, "upper": self._upper,
-            "plan": self._plan, "aseq": self._aseq, "state": self._state, "out": self._out, "hard": self._hard,
+            "plan": self._plan, "aseq": self._aseq, "state": self._state, "active": self._active, "stats": self._stats, "out": self._out, "hard": self._hard,
             "sf": self._SF, "sc": self._SC})
 
     @property
@@ -743,7 +747,7 @@ class MPCDriver:
         key = (i, key_cruise, emergency)
         backend = self._backend(*key)
         fresh = self._last_used.get(key, -2) == self._step - 1
-        start = None if fresh else self._act_codes[i, : self._act_count[i]]
+        start = None if fresh else self._active[i, : self._act_count[i]]
         self._last_used[key] = self._step
         return backend, backend.solve(q, self._lower[i], self._upper[i], start)
 

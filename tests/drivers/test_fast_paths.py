@@ -113,7 +113,7 @@ from acc_gym.drivers.population import sample_driver_values  # noqa: E402
 from acc_gym.drivers.slots import SlotDrivers  # noqa: E402
 from acc_gym.scenarios.spec import DriverSpec  # noqa: E402
 
-DRIVER_STATE = ("_drivers", "_alpha", "_beta", "_gain_f", "_gain_c", "_hinv_f", "_hinv_c", "_gain_lead", "_state", "_out",
+DRIVER_STATE = ("_drivers", "_alpha", "_beta", "_gain_f", "_gain_c", "_hinv_f", "_hinv_c", "_gain_lead", "_state", "_active", "_stats", "_out",
                 "_plan", "_aseq")
 
 
