@@ -6,11 +6,13 @@ for a single column) of ``n`` vehicles each, vehicle 0 being the lead. Follower 
 so a single :class:`~acc_gym.drivers.mpc.MPCDriver` steps every column's follower at once.
 
 Each step has two phases: every model decides from the same snapshot (gaps, speeds and
-accelerations at the start of the step), then every vehicle moves (exact integration,
-no reversing; :mod:`acc_gym.vehicle`). So the order of the models never matters.
+accelerations at the start of the step), then every vehicle moves (Eq. (3) and the exact
+integration, no reversing: the world's compiled move,
+:func:`acc_gym.simulation._world_kernel.advance`, on either path). So the order of the models
+never matters.
 
-Two paths give the same numbers (``tests/simulation/test_column_kernel.py``: equal to the
-per-follower loop within 1e-12):
+Two ways of deciding (``tests/simulation/test_column_kernel.py``: both equal to a reference
+loop with numpy physics within 1e-12):
 
 * a column whose followers are all baseline models (IDM, Gipps, ..., ACC:
   :meth:`~acc_gym.drivers.baselines._Model.compiled_law`) runs in one compiled call for the
@@ -39,7 +41,8 @@ from acc_gym._validation import check_finite, check_positive
 from acc_gym.drivers.base import Observation
 from acc_gym.simulation import _column_kernel as _C
 from acc_gym.simulation.profiles import SpeedProfile
-from acc_gym.vehicle import VehicleParams, applied_acceleration, integrate
+from acc_gym.simulation._world_kernel import advance
+from acc_gym.vehicle import VehicleParams
 
 
 @dataclass
@@ -156,15 +159,15 @@ def simulate_column(lead: SpeedProfile, followers, x0, v0, *, duration: float | 
     stop_at = np.zeros(B) if stop is None else stop  # [m] (unused without a stop position)
     laws = _compiled_laws(followers)
     fault = np.zeros(4)  # column, vehicle, field (index in Observation) and value of a bad observation value
+    vp = np.ascontiguousarray(np.broadcast_to(veh.as_matrix(n), (B, n, 10)))  # the move's vehicle parameters
     if laws is not None:
-        column = (lengths, np.ascontiguousarray(np.broadcast_to(veh.as_matrix(n), (B, n, 10))), float(sensor_range),
-                  stop_at, stop is not None)
+        column = (lengths, vp, float(sensor_range), stop_at, stop is not None)
         done = _C.run(np.ascontiguousarray(prof_next, dtype=float), float(dt), column, tuple(laws),
                       (out["x"], out["v"], out["a"], out["a_des"], out["gap"]), fault)
         if done < T:
             _raise_bad_value(done, fault, out, dt)
     else:
-        _step_each_follower(followers, out, prof_next, dt, veh, lengths, float(sensor_range), stop_at,
+        _step_each_follower(followers, out, prof_next, dt, vp, lengths, float(sensor_range), stop_at,
                             stop is not None, fault)
     stats = {j: m.stats for j, m in enumerate(followers, start=1) if hasattr(m, "stats")}
     sq = (lambda arr: arr[:, 0]) if squeeze else (lambda arr: arr)
@@ -188,17 +191,19 @@ def _compiled_laws(followers) -> tuple | None:
             np.array([law.two_ahead for law in laws]))
 
 
-def _step_each_follower(followers, out: dict, prof_next: np.ndarray, dt: float, veh: VehicleParams,
+def _step_each_follower(followers, out: dict, prof_next: np.ndarray, dt: float, vp: np.ndarray,
                         lengths: np.ndarray, sensor_range: float, stop: np.ndarray, has_stop: bool,
                         fault: np.ndarray) -> None:
     """Steps ``0 .. T-1`` with each follower's model called in Python on its observation, the
     trajectory recorded into ``out`` (row 0 filled). The observations of a step are one array
     made afresh (a model may keep what it was given, e.g. in a delay buffer), built and checked
     by :func:`acc_gym.simulation._column_kernel.observe`; on the first step each is also
-    validated as a model's ``act`` would (shapes and types: the column's, the same every step)."""
+    validated as a model's ``act`` would (shapes and types: the column's, the same every step).
+    ``vp``: the vehicles' parameters ``(B, n, 10)`` (``VehicleParams.as_matrix``)."""
     T, B, n = prof_next.shape[1], out["x"].shape[1], out["x"].shape[2]
     x, v, a = out["x"][0], out["v"][0], out["a"][0]
     a_des = np.zeros((B, n))
+    present = np.ones((B, n), dtype=np.bool_)
     act = [getattr(m, "act_checked", m.act) for m in followers]
     for k in range(T):
         # phase 1: every driver decides from the same snapshot
@@ -217,11 +222,9 @@ def _step_each_follower(followers, out: dict, prof_next: np.ndarray, dt: float, 
             for key in ("mode", "path", "a_req", "slack"):
                 if key in info:
                     out[key][k + 1, :, j] = info[key]
-        # phase 2: every vehicle moves
-        a = applied_acceleration(a_des, v, veh)
-        x, v = integrate(x, v, a, dt)
-        out["a_des"][k + 1] = a_des
-        out["x"][k + 1], out["v"][k + 1], out["a"][k + 1] = x, v, a
+        # phase 2: every vehicle moves (a NaN request moves it to NaN: the next step's check names it)
+        advance(a_des, present, x, v, vp, dt, out["x"][k + 1], out["v"][k + 1], out["a"][k + 1], out["a_des"][k + 1])
+        x, v, a = out["x"][k + 1], out["v"][k + 1], out["a"][k + 1]
         out["gap"][k + 1, :, 0] = np.inf
         out["gap"][k + 1, :, 1:] = x[:, :-1] - lengths[:-1] - x[:, 1:]
 
