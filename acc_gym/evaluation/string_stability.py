@@ -101,7 +101,8 @@ from acc_gym.envs import _kernel as K
 from acc_gym.envs.core import DT
 from acc_gym.onboard import ActuatorConfig, Actuators, actuator_config
 from acc_gym.onboard.actuators import transfer as actuator_transfer
-from acc_gym.vehicle import VehicleParams, applied_acceleration, integrate
+from acc_gym.simulation._world_kernel import advance
+from acc_gym.vehicle import VehicleParams
 
 TOLERANCE = 0.005  # gains up to 1 + TOLERANCE count as string stable
 MAX_RESIDUAL = 0.05  # a pair is measured only where both speeds are sinusoids to within this (rms residual / rms)
@@ -575,7 +576,9 @@ def _simulate(actors, layout: np.ndarray, humans, lead: np.ndarray, gap0: np.nda
     tg = np.full(B * N, float(time_gap))
     failed = np.zeros(B, dtype=bool)
     errors: dict[int, RowError] = {}
-    veh = VehicleParams()
+    vp = np.ascontiguousarray(np.broadcast_to(VehicleParams().as_matrix(N + 1), (B, N + 1, 10)))  # the move's
+    present = np.ones((B, N + 1), dtype=np.bool_)
+    a_used = np.empty((B, N + 1))  # [m/s^2] the move's copy of the requests (unused)
     o = np.empty((8, B, N))
     obs = np.empty((B * N, m), dtype=np.float32)
     a_des = np.zeros((B, N + 1))
@@ -615,8 +618,8 @@ def _simulate(actors, layout: np.ndarray, humans, lead: np.ndarray, gap0: np.nda
             a_des[hb, hj + 1] = driver.act(ob)
         a_des[:, 0] = (lead[:, k + 1] - v[:, 0]) / DT
         a_des[failed, 1:] = 0.0
-        a = applied_acceleration(a_des, v, veh)
-        x, v = integrate(x, v, a, DT)
+        advance(a_des, present, x, v, vp, DT, rec["x"][k + 1], rec["v"][k + 1], rec["a"][k + 1], a_used)
+        x, v, a = rec["x"][k + 1], rec["v"][k + 1], rec["a"][k + 1]  # Eq. (3), the exact integration
         gap = x[:, :-1] - LENGTH - x[:, 1:]
         hit = (gap <= 0.0) & ~failed[:, None]
         for b in np.flatnonzero(hit.any(axis=1)):
