@@ -1346,10 +1346,9 @@ def _make_prepare(parallel):
     (:data:`STEP`), its state in ``r.state`` (:data:`DRIVER_STATE`), its plan and bounds in
     ``r.plan``, ``r.lower``, ``r.upper``.
     """
-    # each variant its own name, hence its own numba cache index: two variants under one index
-    # (the same qualname and line) can be crossed when two processes compile them at once (the
-    # index written by one, a data file by the other): a process then loads the other variant's
-    # code (seen as wrong numbers and crashes under pytest-xdist with a fresh cache)
+    # each variant its own name, hence its own numba cache index: under one index (the same
+    # qualname and line) two processes compiling both variants at once can cross an index entry
+    # and a data file, and a process would then run the other variant's code
     prepare.__name__ = prepare.__qualname__ = "prepare_parallel" if parallel else "prepare"
     return prepare
 

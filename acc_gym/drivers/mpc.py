@@ -441,10 +441,10 @@ class MPCDriver:
     def reset(self) -> None:
         """Back to ACCELERATE with zeroed statistics; solvers restart cold."""
         pending = self._state["follow_pending"].copy()
-        self._state[:] = 0  # modes (ACCELERATE = 0), working sets, statistics, idle marks
+        self._state[:] = 0  # modes (ACCELERATE = 0), working-set sizes, idle marks
         self._state["follow_pending"] = pending  # which follow QPs are installed is the drivers', not the episode's
-        self._active[:] = 0
-        self._stats[:] = 0
+        self._active[:] = 0  # working sets
+        self._stats[:] = 0  # statistics
         self._plan[:] = 0.0
         self._aseq[:] = 0.0
         self._out[:] = 0

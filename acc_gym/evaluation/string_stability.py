@@ -578,7 +578,6 @@ def _simulate(actors, layout: np.ndarray, humans, lead: np.ndarray, gap0: np.nda
     errors: dict[int, RowError] = {}
     vp = np.ascontiguousarray(np.broadcast_to(VehicleParams().as_matrix(N + 1), (B, N + 1, 10)))  # the move's
     present = np.ones((B, N + 1), dtype=np.bool_)
-    a_used = np.empty((B, N + 1))  # [m/s^2] the move's copy of the requests (unused)
     o = np.empty((8, B, N))
     obs = np.empty((B * N, m), dtype=np.float32)
     a_des = np.zeros((B, N + 1))
@@ -618,7 +617,8 @@ def _simulate(actors, layout: np.ndarray, humans, lead: np.ndarray, gap0: np.nda
             a_des[hb, hj + 1] = driver.act(ob)
         a_des[:, 0] = (lead[:, k + 1] - v[:, 0]) / DT
         a_des[failed, 1:] = 0.0
-        advance(a_des, present, x, v, vp, DT, rec["x"][k + 1], rec["v"][k + 1], rec["a"][k + 1], a_used)
+        # (every vehicle present: advance copies each request onto itself)
+        advance(a_des, present, x, v, vp, DT, rec["x"][k + 1], rec["v"][k + 1], rec["a"][k + 1], a_des)
         x, v, a = rec["x"][k + 1], rec["v"][k + 1], rec["a"][k + 1]  # Eq. (3), the exact integration
         gap = x[:, :-1] - LENGTH - x[:, 1:]
         hit = (gap <= 0.0) & ~failed[:, None]
