@@ -59,12 +59,14 @@ class SlotDrivers:
         self.fallbacks = np.zeros(self.n, dtype=np.int64)  # solver fallbacks in the current episode
         self._no_modes = np.full(self.n, -1, dtype=np.int64)  # info["mode"] of a step without MPC drivers
         self._no_modes.setflags(write=False)  # one array for every such step: read-only
+        self._stale = True  # the rows changed since _refresh (assign sets it)
 
     # ------------------------------------------------------------------ episodes
     def assign(self, row: int, spec) -> None:
         """Give scene ``row`` the driver ``spec`` (a :class:`~acc_gym.scenarios.spec.DriverSpec`
         or None for an absent vehicle) and restart it."""
         row = int(row)
+        self._stale = True
         self._baseline.remove(row)
         self._clock[row] = 0
         self.fallbacks[row] = 0
@@ -111,17 +113,15 @@ class SlotDrivers:
 
     def _refresh(self) -> None:
         """The rows' kinds as a step reads them (which rows hold an MPC driver, profiles, baseline
-        models; whether :meth:`act_world` is one compiled call), worked out again only when the
-        kinds change or the baseline rows come to have (or lose) a reaction delay or a law
-        outside the compiled loop (:meth:`BaselineRows.delayed`, :meth:`BaselineRows.all_compiled`).
-        The MPC batch is told which rows to skip (:meth:`MPCDriver.set_idle
-        <acc_gym.drivers.mpc.MPCDriver.set_idle>`): their output is not used."""
-        b = self._baseline
-        delayed, compiled = b.delayed(), b.all_compiled()
-        seen = (self.kind.tobytes(), delayed, compiled)  # what the step depends on
-        if seen == getattr(self, "_seen", None):
+        models; whether :meth:`act_world` is one compiled call, and then its laws), worked out
+        again only after :meth:`assign` (the one place the rows change: their kinds, the baseline
+        rows' reaction delays and laws, the profiles). The MPC batch is told which rows to skip
+        (:meth:`MPCDriver.set_idle <acc_gym.drivers.mpc.MPCDriver.set_idle>`): their output is
+        not used."""
+        if not self._stale:
             return
-        self._seen = seen
+        self._stale = False
+        b = self._baseline
         counts = np.bincount(self.kind, minlength=4)  # rows per kind (none, mpc, profile, baseline)
         self._is_mpc = self.kind == 1
         self._n_mpc = int(counts[1])
@@ -131,8 +131,10 @@ class SlotDrivers:
         self._has_profiles = bool(counts[2])
         self._has_baselines = bool(counts[3])
         # baseline models without a reaction delay (every law a MODELS class's), profiles and absent
-        # vehicles only: act_world is one compiled call (_baseline_kernels.slot_laws)
-        self._compiled = not counts[1] and not delayed and compiled
+        # vehicles only: act_world is one compiled call (_baseline_kernels.slot_laws) over these arrays
+        compiled = not counts[1] and not b.delayed() and b.all_compiled()
+        self._laws = (self.kind, b.law_kind, b.law_params, b.law_two, self.dt, self._profile,
+                      self._clock) if compiled else None
 
     # ------------------------------------------------------------------ step
     def act(self, obs: Observation) -> np.ndarray:
@@ -186,8 +188,11 @@ class SlotDrivers:
         its outputs put back (:func:`acc_gym.simulation._world_kernel.slot_rows`,
         :func:`~acc_gym.simulation._world_kernel.put_slots`). The same numbers either way
         (``tests/drivers/test_slots.py``)."""
-        laws = self.compiled_laws()
-        if laws is not None:
+        if self._stale:
+            self._refresh()
+        laws = self._laws
+        if laws is not None:  # compiled_laws(), inline: this is every step of such a world
+            self.info = {"mode": self._no_modes}
             _bk.slot_laws(obs, laws, a_des)  # (it advances the clocks)
             return
         rows = np.empty((obs.shape[1], self.n))
@@ -204,11 +209,9 @@ class SlotDrivers:
         itself over several steps (:meth:`SingleLaneWorld.coast
         <acc_gym.simulation.single_lane.SingleLaneWorld.coast>`) takes them from here."""
         self._refresh()
-        if not self._compiled:
-            return None
-        self.info = {"mode": self._no_modes}
-        b = self._baseline
-        return self.kind, b.law_kind, b.law_params, b.law_two, self.dt, self._profile, self._clock
+        if self._laws is not None:
+            self.info = {"mode": self._no_modes}
+        return self._laws
 
     @property
     def stats(self) -> dict[str, np.ndarray]:

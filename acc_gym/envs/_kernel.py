@@ -375,14 +375,17 @@ def action_to_accel(action, accel_max, decel_max, out):  # pragma: no cover - co
 
 
 @numba.njit(cache=True, error_model="numpy")
-def step(a_des, x, v, a, F, I, obs_all, core):  # pragma: no cover - compiled
+def step(a_des, x, v, a, F, I, obs_all, obs, obs32, active, core):  # pragma: no cover - compiled
     """The world's move and the step's judgement, after the drivers decided (``a_des`` ``(n,
     S)`` [m/s^2]): :func:`acc_gym.simulation._world_kernel.move` from the state ``x``, ``v``,
     ``a`` into ``F``, ``I``, ``obs_all`` (``core.world``), :func:`criteria` into ``core.out``'s
     ``fl`` (plus the scenes' new times in row :data:`F_T`) and ``bo``, and the built-in reward
     ``core.plan.code`` names: :data:`REWARD_CRITERIA` (:func:`criteria_reward_rows`),
     :data:`REWARD_MARGIN` (:func:`margin_reward_rows`), :data:`REWARD_NONE` none (the caller's
-    reward fills ``core.out.reward``)."""
+    reward fills ``core.out.reward``). With a built-in reward nothing comes between this and
+    the step's end, so it ends the step too (:func:`finish` of ``active``, ``obs``, ``obs32``)
+    and returns finish's counts; with :data:`REWARD_NONE` it returns ``(-1, -1)`` and the
+    caller calls :func:`finish` after its reward."""
     w, sc, p, o = core.world, core.scenes, core.plan, core.out
     n = w.k.shape[0]
     a_prev = np.empty(n)
@@ -395,11 +398,14 @@ def step(a_des, x, v, a, F, I, obs_all, core):  # pragma: no cover - compiled
         criteria_reward_rows(o.fl, o.bo, sc.set_speed, sc.tau1, p.a_comfort, p.weights, o.terms, o.reward)
     elif p.code == REWARD_MARGIN:
         margin_reward_rows(o.fl, o.bo, sc.set_speed, sc.tau1, sc.steps, w.k, p.a_comfort, p.weights, o.terms, o.reward)
+    else:
+        return -1, -1
+    return finish(active, F, I, obs_all, obs, obs32, core)
 
 
 @numba.njit(cache=True, error_model="numpy")
 def finish(active, F, I, obs_all, obs, obs32, core):  # pragma: no cover - compiled
-    """The end of a step (after :func:`step` and the caller's reward, in ``core.out.reward``):
+    """The end of a step (by :func:`step` itself, or after it and the caller's reward, in ``core.out.reward``):
     :func:`settle` of the ``active`` scenes, :func:`record` of them, and the ego's
     :func:`observe` of the new state (``F``, ``I``, ``obs_all``) into ``obs`` (``(n, m)``, or
     nothing when it has no rows); with feature bounds (``core.plan.f_low``, ``f_high``; version

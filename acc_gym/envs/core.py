@@ -18,6 +18,7 @@ score see the true state.
 
 from __future__ import annotations
 
+import operator
 from dataclasses import dataclass
 
 import numpy as np
@@ -259,9 +260,10 @@ class EpisodeBatch:
         Every driver decides from one snapshot (:meth:`SingleLaneWorld.decide
         <acc_gym.simulation.single_lane.SingleLaneWorld.decide>`, compiled where the drivers
         are), then one compiled call moves the world and judges the step
-        (:func:`acc_gym.envs._kernel.step`), a reward that is not built in is called on its
-        criteria, and a second call ends it (:func:`~acc_gym.envs._kernel.finish`); both read
-        the core as one record (:meth:`_kernel_core`). The world's state alternates between two
+        and, with a built-in reward, ends it (:func:`acc_gym.envs._kernel.step`); a reward that
+        is not built in is called on the step's criteria and a second call ends the step
+        (:func:`~acc_gym.envs._kernel.finish`). Both read the core as one record
+        (:meth:`_kernel_core`). The world's state alternates between two
         sets of arrays (:meth:`SingleLaneWorld.reused_buffers
         <acc_gym.simulation.single_lane.SingleLaneWorld.reused_buffers>`): a state array read
         from :attr:`world` keeps its values until the step after next. With a car in the config
@@ -276,16 +278,18 @@ class EpisodeBatch:
         x, v, a = w.x, w.v, w.a
         buf = w.reused_buffers()
         buf.obs.setflags(write=True)
-        K.step(a_all, x, v, a, buf.F, buf.I, buf.obs, core)
-        w.adopt_buffers(buf)  # the world has moved (whatever the reward below does)
-        self._python_terms = self._python_reward(plan) if plan.code == K.REWARD_NONE else None
         obs, obs32 = plan.fresh_observations(self.n)
         active = ~self.done if active is None else active
-        n_rows, n_ended = K.finish(active, buf.F, buf.I, buf.obs, obs, obs32, core)
+        n_rows, n_ended = K.step(a_all, x, v, a, buf.F, buf.I, buf.obs, obs, obs32, active, core)
+        w.adopt_buffers(buf)  # the world has moved (whatever the reward below does)
+        self._python_terms = None
+        if n_rows < 0:  # a reward that is not built in, on the step's criteria; then the step's end
+            self._python_terms = self._python_reward(plan)
+            n_rows, n_ended = K.finish(active, buf.F, buf.I, buf.obs, obs, obs32, core)
         self.last_obs = obs32 if plan.m0 is not None else None
         if self.car is not None:
             self._car_after_step()
-        return plan.reward, plan.terminated, plan.truncated, self._ended(plan.ended[:n_ended])
+        return plan.reward, plan.terminated, plan.truncated, self._ended(plan.ended[:n_ended]) if n_ended else {}
 
     def _python_reward(self, plan: "_StepPlan") -> dict:
         """A reward that is not built in, on the step's criteria: its reward into the step's
@@ -311,6 +315,7 @@ class EpisodeBatch:
 
     # the floats of a step's info: its key and criteria row
     _INFO_ROWS = (("t", K.F_T), ("q", K.F_Q), ("g", K.F_Q), ("gap_safe", K.F_GS), ("a_applied", K.F_A))
+    _INFO_KEYS, _INFO_PICK = tuple(k for k, _ in _INFO_ROWS), operator.itemgetter(*(r for _, r in _INFO_ROWS))
 
     def info(self, active: np.ndarray | None = None) -> dict:
         """The last step's info over the scenes, as fresh arrays: the time ``t`` [s], ``q`` and
@@ -332,7 +337,7 @@ class EpisodeBatch:
         """:meth:`info` of scene ``row``, as Python numbers (the single environment's)."""
         plan = self._plan if self._plan is not None else self._step_plan()
         f = plan.fl[:, row].tolist()  # one conversion for every float of the step
-        info = {key: f[k] for key, k in self._INFO_ROWS}
+        info = dict(zip(self._INFO_KEYS, self._INFO_PICK(f)))
         mode = self.drivers.info.get("mode")  # rows: each slot's scenes in turn
         fb = self.drivers.fallbacks
         info.update(violation=bool(plan.bo[K.B_VIOLATION, row]),

@@ -409,7 +409,7 @@ class SingleLaneWorld:
         ego = float(ego_a_des)
         check_finite("ego_a_des", ego)
         xs, vs = np.empty((2, steps + 1, self.B, self.S))
-        joint = getattr(self, "joint", None)
+        joint = self.joint
         laws = joint.compiled_laws() if (joint is not None and steps > 0) else None
         if laws is not None:
             from acc_gym.simulation import _rollout_kernel  # late: it joins the drivers' kernels
@@ -441,15 +441,14 @@ class SingleLaneWorld:
                 a_des[:, 0] = ego
         elif self.drivers[0] is None:
             raise ValueError("the ego has no model: pass ego_a_des to step()")
-        joint = getattr(self, "joint", None)
+        joint = self.joint
         if joint is not None:  # every surrounding slot in one call: rows (s - 1) B + b
             self.observation_array(0)  # makes every slot's observations of this state, (S, 8, B)
             joint.act_world(self._obs, a_des)
-        for s, model in enumerate(self.drivers):
+        for s in range(1 if joint is not None else self.S):  # the slots the joint drivers do not hold
+            model = self.drivers[s]
             if (s == 0 and ego_a_des is not None) or model is None:
                 continue
-            if joint is not None and s > 0:
-                break
             act_rows = getattr(model, "act_rows", None)  # drivers that read the observation rows directly
             a_des[:, s] = act_rows(self.observation_array(s)) if act_rows is not None else model.act(self.observe(s))
         return a_des
