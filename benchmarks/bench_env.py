@@ -77,17 +77,25 @@ once more, as ``<case>_reset_share`` (the time in ``env.reset()``), ``<case>_dec
 without the resets) and ``<case>_steps_per_episode`` (:func:`single_env_split`).
 
 ``--against DIR`` times another checkout of the package (e.g. the previous release:
-``git worktree add /tmp/prev v0.5.0``) in the same run: each repeat runs this script once
-for this checkout and once for ``DIR`` (``PYTHONPATH=DIR``), alternating, in subprocesses,
-and reports both medians and their ratio per key (``against``: ``{key: {"this": ..,
-"other": .., "ratio": .., "paired_ratio": ..}}``). ``paired_ratio`` is the median over the
-repeats of each repeat's own ratio (this run / the other checkout's run right after it): the
-machine's speed drifts by 30-50 % over minutes, which moves both runs of a pair together but
-not the two medians, so prefer it when the runs spread widely.
+``git worktree add /tmp/prev v0.5.0``) in the same run. Per case and repeat, a fresh worker
+process for this checkout and one for ``DIR`` (``PYTHONPATH=DIR``) each make the case's single
+env and vector env and warm them up; then ``--rounds`` rounds each time a block of
+``--steps`` single steps and ``--vector-steps`` vector steps in both workers back to back (who
+goes first alternates), and the repeat's rate is the median of its rounds. It reports both
+medians over the repeats and their ratio per key (``against``: ``{key: {"this": .., "other":
+.., "ratio": .., "paired_ratio": ..}}``); ``paired_ratio`` is the median over the repeats of
+each repeat's own ratio. Rates there are steps per CPU second of the worker
+(``time.process_time``, ``"clock": "process_time"``): on a shared machine the wall clock also
+counts the time given to others, which drifts by 30-50 % over seconds and minutes, and blocks
+one right after the other see the same machine. Fresh processes per repeat because one process
+can run 10-15 % faster or slower than another of the same code for all its life (measured here:
+31 rounds in one pair of processes gave 0.90 and, in another pair, 1.09 for the same two
+checkouts). It times the single and vector envs only (not ``--parallel``, ``--policy``,
+``--peers``).
 
     python benchmarks/bench_env.py            # table
     python benchmarks/bench_env.py --json     # one JSON object
-    python benchmarks/bench_env.py --against /tmp/prev --repeats 5
+    python benchmarks/bench_env.py --against /tmp/prev --repeats 9
 """
 
 from __future__ import annotations
@@ -397,28 +405,90 @@ def paired_ratio(this_runs: list, other_runs: list) -> float:
     return float(np.median([a / b for a, b in zip(this_runs, other_runs)]))
 
 
+def serve(case: str, num_envs: int) -> None:
+    """The worker of :func:`against`: ``case``'s single env and vector env of ``num_envs`` made
+    once, warmed up, then for each line ``single N`` or ``vector N`` on stdin, ``N`` more steps
+    of that env and one line with the CPU seconds they took (``time.process_time``). Runs under
+    whichever checkout ``PYTHONPATH`` names, so it uses only the public API."""
+    env_id, settings = CASES[case]
+    warm_up_episode(env_id, **settings)
+    single, actions = _single_env(4096, 0, env_id, settings)
+    vec = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **settings)
+    vec.reset(seed=0)
+    vec_actions = np.random.default_rng(0).uniform(-0.3, 0.3, (256, num_envs, 1)).astype(np.float32)
+    clock = {"single": 0, "vector": 0}
+
+    def run(kind: str, steps: int) -> None:
+        for _ in range(steps):
+            k = clock[kind] = clock[kind] + 1
+            if kind == "vector":
+                vec.step(vec_actions[k % 256])
+            else:
+                _, _, term, trunc, _ = single.step(actions[k % 4096])
+                if term or trunc:
+                    single.reset()
+
+    run("single", 200)
+    run("vector", 5)
+    print("ready", flush=True)
+    for line in sys.stdin:
+        kind, steps = line.split()
+        t0 = time.process_time()
+        run(kind, int(steps))
+        print(time.process_time() - t0, flush=True)
+
+
 def against(args) -> dict:
-    """This checkout and ``args.against``, alternating, one subprocess each per repeat."""
-    cmd = [sys.executable, os.path.abspath(__file__), "--repeats", "1", "--json", "--steps", str(args.steps),
-           "--vector-steps", str(args.vector_steps), "--num-envs", str(args.num_envs), "--workers", str(args.workers),
-           "--cases", *args.cases, *(["--parallel"] if args.parallel else []), *(["--policy"] if args.policy else []),
-           *(["--peers"] if args.peers else [])]
-    other_env = {**os.environ, "PYTHONPATH": os.path.abspath(args.against)}
-    runs = {"this": [], "other": []}
-    for _ in range(args.repeats):
-        for who, env in (("this", None), ("other", other_env)):
-            r = subprocess.run(cmd, capture_output=True, text=True, check=True, env=env,
-                               cwd=os.path.dirname(os.path.abspath(__file__)))
-            runs[who].append(json.loads(r.stdout.strip().splitlines()[-1]))
-    keys = [k for k in runs["this"][0] if k.endswith("_steps_per_s") and k in runs["other"][0]]
+    """This checkout and ``args.against`` in one run: per case and repeat, one fresh worker
+    process each (:func:`serve`) holding the case's envs, then ``args.rounds`` rounds, each
+    timing a block of ``args.steps`` single-env steps and one of ``args.vector_steps`` vector
+    steps in both workers back to back (who goes first alternating). A repeat's rate is the
+    median of its rounds, in steps per CPU second of the worker."""
+    if args.parallel or args.policy or args.peers:
+        raise SystemExit("--against times the single and vector envs only: run --parallel, --policy or --peers "
+                         "without it")
+    here = os.path.abspath(__file__)
+    envs = {"this": None, "other": {**os.environ, "PYTHONPATH": os.path.abspath(args.against)}}
     table = {}
-    for k in keys:
-        this_runs, other_runs = [r[k] for r in runs["this"]], [r[k] for r in runs["other"]]
-        this, other = float(np.median(this_runs)), float(np.median(other_runs))
-        table[k] = {"this": this, "other": other, "ratio": this / other,
-                    "paired_ratio": paired_ratio(this_runs, other_runs),
-                    "this_runs": [round(x) for x in this_runs], "other_runs": [round(x) for x in other_runs]}
-    return {"against": table, "against_dir": os.path.abspath(args.against), "repeats": args.repeats}
+    for case in args.cases:
+        runs = {(who, kind): [] for who in envs for kind in ("single", "vector")}
+        for _ in range(args.repeats):
+            rounds = _rounds(here, case, envs, args)
+            for key, rates in rounds.items():
+                runs[key].append(float(np.median(rates)))
+        for kind, key in (("single", f"{case}_steps_per_s"), ("vector", f"vector_{case}_steps_per_s")):
+            this_runs, other_runs = runs["this", kind], runs["other", kind]
+            this, other = float(np.median(this_runs)), float(np.median(other_runs))
+            table[key] = {"this": this, "other": other, "ratio": this / other,
+                          "paired_ratio": paired_ratio(this_runs, other_runs),
+                          "this_runs": [round(x) for x in this_runs], "other_runs": [round(x) for x in other_runs]}
+    return {"against": table, "against_dir": os.path.abspath(args.against), "repeats": args.repeats,
+            "rounds": args.rounds, "clock": "process_time"}
+
+
+def _rounds(here: str, case: str, envs: dict, args) -> dict:
+    """One repeat of :func:`against`: a worker per checkout, ``args.rounds`` rounds; the rates
+    by ``(who, kind)``."""
+    workers = {who: subprocess.Popen([sys.executable, here, "--serve", case, "--num-envs", str(args.num_envs)],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env,
+                                     cwd=os.path.dirname(here)) for who, env in envs.items()}
+    rates = {(who, kind): [] for who in workers for kind in ("single", "vector")}
+    try:
+        for who, w in workers.items():
+            if w.stdout.readline().strip() != "ready":
+                raise RuntimeError(f"the {who} checkout's worker for {case} did not start (exit {w.wait()})")
+        for r in range(args.rounds):
+            for who in (("this", "other") if r % 2 == 0 else ("other", "this")):
+                w = workers[who]
+                for kind, steps in (("single", args.steps), ("vector", args.vector_steps)):
+                    w.stdin.write(f"{kind} {steps}\n")
+                    w.stdin.flush()
+                    rates[who, kind].append(steps * (args.num_envs if kind == "vector" else 1) / float(w.stdout.readline()))
+    finally:
+        for w in workers.values():
+            w.stdin.close()
+            w.wait()
+    return rates
 
 
 def main(argv=None) -> dict:
@@ -437,20 +507,26 @@ def main(argv=None) -> dict:
     parser.add_argument("--peers", action="store_true",
                         help="also time SUMO (libsumo) on the env_idm work and cavsandbox on the column case, "
                              "alternating, and report sumo_ratio and column_ratio_cavsandbox")
+    parser.add_argument("--rounds", type=int, default=5,
+                        help="with --against: back-to-back blocks per repeat's pair of worker processes")
     parser.add_argument("--against", default=None, metavar="DIR",
                         help="also time the checkout in DIR (PYTHONPATH=DIR), alternating, and report the ratios")
     parser.add_argument("--split", action="store_true",
                         help="also report each vector case's share of time in autoresets and its rate without them, "
                              "and each single case's time in resets and in the drivers' decisions")
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--serve", choices=list(CASES), help=argparse.SUPPRESS)  # against()'s worker
     args = parser.parse_args(argv)
+    if args.serve:
+        serve(args.serve, args.num_envs)
+        return {}
     if args.against:
         out = against(args)
         if args.json:
             print(json.dumps(out))
         else:
-            print(f"this checkout against {out['against_dir']} ({args.repeats} alternating runs each, medians; "
-                  f"paired: the median of each repeat's ratio):")
+            print(f"this checkout against {out['against_dir']} ({args.repeats} pairs of processes, {args.rounds} "
+                  f"back-to-back blocks each, steps per CPU second, medians; paired: the median of each pair's ratio):")
             for k, row in out["against"].items():
                 print(f"  {k:38s} {row['this']:>12,.0f} vs {row['other']:>12,.0f}  x{row['ratio']:.2f}"
                       f"  paired x{row['paired_ratio']:.2f}")

@@ -6,6 +6,7 @@ import pathlib
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -102,16 +103,29 @@ def test_reproducibility_json_keys():
 
 
 def test_bench_env_against_another_checkout():
-    """--against DIR alternates this checkout and DIR (here: this one again) and reports both medians."""
-    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_env.py"), "--json", "--repeats", "1",
+    """--against DIR (here: this checkout again) times both in worker processes, a fresh pair per
+    repeat: every repeat gives one rate per checkout and kind, the medians and ratios follow
+    from them, and a repeat's pair gives the paired ratio."""
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_env.py"), "--json", "--repeats", "3",
+                        "--rounds", "2",
                         "--steps", "50", "--vector-steps", "2", "--num-envs", "4", "--workers", "1", "--cases",
                         "env_carfollowing", "--against", str(ROOT)], capture_output=True, text=True, check=True, cwd=ROOT)
     out = json.loads(r.stdout.strip().splitlines()[-1])
     assert set(out["against"]) == {"env_carfollowing_steps_per_s", "vector_env_carfollowing_steps_per_s"}
+    assert out["clock"] == "process_time" and out["repeats"] == 3 and out["rounds"] == 2
     for row in out["against"].values():
+        assert len(row["this_runs"]) == len(row["other_runs"]) == 3
+        assert row["this"] == pytest.approx(np.median(row["this_runs"]), rel=1e-3)  # the runs are rounded
+        assert row["other"] == pytest.approx(np.median(row["other_runs"]), rel=1e-3)
         assert row["this"] > 0 and row["other"] > 0 and row["ratio"] == pytest.approx(row["this"] / row["other"])
-        assert len(row["this_runs"]) == len(row["other_runs"]) == 1
-        assert row["paired_ratio"] == pytest.approx(row["this"] / row["other"])  # one pair: the same ratio
+        ratios = np.array(row["this_runs"]) / np.array(row["other_runs"])
+        assert row["paired_ratio"] == pytest.approx(np.median(ratios), rel=1e-2)
+
+
+def test_bench_env_against_refuses_what_it_does_not_time():
+    r = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_env.py"), "--json", "--cases", "env",
+                        "--against", str(ROOT), "--policy"], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode != 0 and "--against times the single and vector envs only" in r.stderr
 
 
 def test_paired_ratio_is_the_median_of_each_repeats_ratio():
