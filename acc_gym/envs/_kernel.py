@@ -356,6 +356,18 @@ def observe(o, set_speed, time_gap, sensor_range, v2v, low, high, out):  # pragm
             out[i, j] = min(max(row[j], low[j]), high[j])
 
 
+@numba.njit(cache=True)
+def clip_columns(src, dst, lo, hi, low, high):  # pragma: no cover - compiled
+    """``dst[:, lo:hi] = np.minimum(np.maximum(src[:, lo:hi], low[lo:hi]), high[lo:hi])`` with
+    numpy's rules (NaN kept; of two equal values, the bound), in one pass: the car's observed
+    fields into an observation (:meth:`acc_gym.envs.car.Car.apply`)."""
+    for i in range(src.shape[0]):
+        for j in range(lo, hi):
+            x = src[i, j]
+            x = x if (x > low[j] or x != x) else low[j]
+            dst[i, j] = x if (x < high[j] or x != x) else high[j]
+
+
 def accel_of_action(x: float, accel_max: float, decel_max: float) -> float:
     """One finite action to a desired acceleration [m/s^2]: clipped to [-1, 1], then
     ``x * accel_max`` for ``x >= 0`` and ``x * decel_max`` below. The one definition: the single

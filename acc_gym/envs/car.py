@@ -91,7 +91,7 @@ class Car:
         """What the egos' vehicles are asked to realise for commands ``a_des`` [m/s^2]."""
         if self.actuators is None:
             return a_des
-        return self.actuators.command(np.asarray(a_des, dtype=float), a_prev)
+        return self.actuators.command(a_des, a_prev)  # (which takes them as float64 arrays)
 
     def sense(self, world, fields: np.ndarray) -> None:
         """The radars' and links' step after the world's; ``fields`` the true v0 fields after it."""
@@ -102,11 +102,10 @@ class Car:
 
     def apply(self, fields: np.ndarray, low: np.ndarray, high: np.ndarray) -> None:
         """The observed fields written into the v0 ``fields`` ``(n, m)`` (in place), clipped to the bounds."""
-        if self.radar is not None:  # (np.minimum / np.maximum: np.clip's own overhead is most of this call)
-            fields[:, RADAR_FIELDS] = np.minimum(np.maximum(self.seen[:, RADAR_FIELDS], low[RADAR_FIELDS]),
-                                                 high[RADAR_FIELDS])
+        if self.radar is not None:
+            K.clip_columns(self.seen, fields, RADAR_FIELDS.start, RADAR_FIELDS.stop, low, high)
         if self.link is not None:
-            fields[:, V2V_SLICE] = np.minimum(np.maximum(self.seen[:, V2V_SLICE], low[V2V_SLICE]), high[V2V_SLICE])
+            K.clip_columns(self.seen, fields, V2V_SLICE.start, V2V_SLICE.stop, low, high)
 
 
 def _truth(world) -> tuple:

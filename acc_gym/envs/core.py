@@ -18,6 +18,7 @@ score see the true state.
 
 from __future__ import annotations
 
+import math
 import operator
 from dataclasses import dataclass
 
@@ -309,7 +310,7 @@ class EpisodeBatch:
             car.start_pending(self.world, true_fields(self, np.full(m0, -np.inf), np.full(m0, np.inf)))
         if car.actuators is None:
             return a_des
-        if not np.isfinite(a_des).all():
+        if not (math.isfinite(a_des[0]) if self.n == 1 else np.isfinite(a_des).all()):
             check_finite("ego_a_des", a_des)  # raises, naming it, before it enters the actuators' history
         return car.command(a_des, self.world.a[:, 0])
 

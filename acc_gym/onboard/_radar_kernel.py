@@ -73,8 +73,10 @@ def sense(radar, scenes, reports, draws, obs, y, width, lead, lead2, rows, start
     observation rows (v, a, gap, v_lead, a_lead, gap2, v_lead2, a_lead2), ``y`` and ``width``
     (n, S) [m], ``lead`` and ``lead2`` (n, S) the vehicles ahead of each slot (-1: none).
     ``start``: the scenes start (the chain in its long-run distribution, no track, every row of
-    the latency's buffer this step's report); else every scene steps."""
+    the latency's buffer this step's report); else every scene steps. Returns the largest next
+    draw position among ``rows`` after the step (a block is used up at ``BLOCK``)."""
     p = radar[0]
+    pos_max = 0
     n_rows = reports.shape[0]
     if not start:
         radar[0].head = (p.head + 1) % n_rows
@@ -85,6 +87,7 @@ def sense(radar, scenes, reports, draws, obs, y, width, lead, lead2, rows, start
         k = s.pos
         u, z_gap, z_rate = draws[r, k, 0], draws[r, k, 1], draws[r, k, 2]
         s.pos = k + 1
+        pos_max = max(pos_max, k + 1)
         if start:
             s.dropped = u < s.share
             s.alive = False
@@ -121,3 +124,4 @@ def sense(radar, scenes, reports, draws, obs, y, width, lead, lead2, rows, start
             reports[m, r, 0], reports[m, r, 1], reports[m, r, 2] = g, rate, seen
         late = (head - p.latency) % n_rows
         out[i, 0], out[i, 1], out[i, 2] = reports[late, r, 0], reports[late, r, 1], reports[late, r, 2]
+    return pos_max

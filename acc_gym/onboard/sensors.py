@@ -155,6 +155,7 @@ class Radar:
         self.draws = np.zeros((n, BLOCK, 3))  # each scene's next draws: uniform, normal, normal
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._all = np.arange(n, dtype=np.int64)
+        self._pos_max = BLOCK  # the largest next draw position of any scene (BLOCK: some block is used up)
 
     def _refill(self, rows: np.ndarray) -> None:
         """New blocks of draws for the scenes of ``rows`` that have used theirs."""
@@ -183,14 +184,15 @@ class Radar:
         self._refill(rows)
         out = np.empty((rows.shape[0], 3))
         K.sense(self.radar, sc, self.reports, self.draws, *truth, rows, True, out)
+        self._pos_max = int(sc["pos"].max())
         return out
 
     def sense(self, truth) -> np.ndarray:
         """One step of every scene in the world's state ``truth`` (``obs, y, width, lead, lead2``:
         :func:`acc_gym.onboard._radar_kernel.sense`'s world arrays); the observed ``(n, 3)``: gap
         [m], relative speed [m/s] and in-range flag."""
-        if self.scenes["pos"].max() >= BLOCK:
+        if self._pos_max >= BLOCK:
             self._refill(self._all)
         out = np.empty((self.n, 3))
-        K.sense(self.radar, self.scenes, self.reports, self.draws, *truth, self._all, False, out)
+        self._pos_max = K.sense(self.radar, self.scenes, self.reports, self.draws, *truth, self._all, False, out)
         return out
