@@ -260,12 +260,12 @@ class EpisodeBatch:
 
         Every driver decides from one snapshot (:meth:`SingleLaneWorld.decide
         <acc_gym.simulation.single_lane.SingleLaneWorld.decide>`, compiled where the drivers
-        are), then one compiled call moves the world and judges the step
-        and, with a built-in reward, ends it (:func:`acc_gym.envs._kernel.step`); a reward that
-        is not built in is called on the step's criteria and a second call ends the step
+        are), then one compiled call moves the world, judges the step and, with a built-in
+        reward, ends it (:func:`acc_gym.envs._kernel.step`); a reward that is not built in is
+        called on the step's criteria and a second call ends the step
         (:func:`~acc_gym.envs._kernel.finish`). Both read the core as one record
-        (:meth:`_kernel_core`). The world's state alternates between two
-        sets of arrays (:meth:`SingleLaneWorld.reused_buffers
+        (:meth:`_kernel_core`). The world's state alternates between two sets of arrays
+        (:meth:`SingleLaneWorld.reused_buffers
         <acc_gym.simulation.single_lane.SingleLaneWorld.reused_buffers>`): a state array read
         from :attr:`world` keeps its values until the step after next. With a car in the config
         the command passes its actuators first and the observation its radar and link last
