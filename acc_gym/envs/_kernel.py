@@ -271,23 +271,24 @@ def criteria_reward_rows(fl, bo, set_speed, tau1, a_comfort, w, terms, reward): 
 
 
 @numba.njit(cache=True, error_model="numpy")
-def settle(active, reward, bo, k, steps, terminate_on_violation, episode_return, terminated, truncated, rows,
+def settle(idle, reward, bo, k, steps, terminate_on_violation, episode_return, terminated, truncated, rows,
            ended):  # pragma: no cover - compiled
     """The end of a step for every scene, from :func:`criteria`'s boolean output ``bo``.
 
     Writes ``terminated`` (a collision, or a violation with ``terminate_on_violation``) and
     ``truncated`` (the step budget ``steps`` reached at step ``k``, not terminated); adds
-    ``reward`` to ``episode_return`` of the ``active`` scenes; lists the active scenes in
+    ``reward`` to ``episode_return`` of the active scenes (those not ``idle``: the core's
+    ``done`` flags, or a vector env's scenes about to be reset); lists the active scenes in
     ``rows`` and those of them whose episode ended in ``ended``. Returns both counts.
     """
     n_rows = 0
     n_ended = 0
-    for i in range(active.shape[0]):
+    for i in range(idle.shape[0]):
         term = bo[B_COLLISION, i] or (bo[B_VIOLATION, i] and terminate_on_violation)
         trunc = k[i] >= steps[i] and not term
         terminated[i] = term
         truncated[i] = trunc
-        if active[i]:
+        if not idle[i]:
             rows[n_rows] = i
             n_rows += 1
             episode_return[i] += reward[i]
@@ -387,7 +388,7 @@ def action_to_accel(action, accel_max, decel_max, out):  # pragma: no cover - co
 
 
 @numba.njit(cache=True, error_model="numpy")
-def step(a_des, x, v, a, F, I, obs_all, obs, obs32, active, core):  # pragma: no cover - compiled
+def step(a_des, x, v, a, F, I, obs_all, obs, obs32, idle, core):  # pragma: no cover - compiled
     """The world's move and the step's judgement, after the drivers decided (``a_des`` ``(n,
     S)`` [m/s^2]): :func:`acc_gym.simulation._world_kernel.move` from the state ``x``, ``v``,
     ``a`` into ``F``, ``I``, ``obs_all`` (``core.world``), :func:`criteria` into ``core.out``'s
@@ -395,7 +396,7 @@ def step(a_des, x, v, a, F, I, obs_all, obs, obs32, active, core):  # pragma: no
     ``core.plan.code`` names: :data:`REWARD_CRITERIA` (:func:`criteria_reward_rows`),
     :data:`REWARD_MARGIN` (:func:`margin_reward_rows`), :data:`REWARD_NONE` none (the caller's
     reward fills ``core.out.reward``). With a built-in reward nothing comes between this and
-    the step's end, so it ends the step too (:func:`finish` of ``active``, ``obs``, ``obs32``)
+    the step's end, so it ends the step too (:func:`finish` of ``idle``, ``obs``, ``obs32``)
     and returns finish's counts; with :data:`REWARD_NONE` it returns ``(-1, -1)`` and the
     caller calls :func:`finish` after its reward."""
     w, sc, p, o = core.world, core.scenes, core.plan, core.out
@@ -412,19 +413,19 @@ def step(a_des, x, v, a, F, I, obs_all, obs, obs32, active, core):  # pragma: no
         margin_reward_rows(o.fl, o.bo, sc.set_speed, sc.tau1, sc.steps, w.k, p.a_comfort, p.weights, o.terms, o.reward)
     else:
         return -1, -1
-    return finish(active, F, I, obs_all, obs, obs32, core)
+    return finish(idle, F, I, obs_all, obs, obs32, core)
 
 
 @numba.njit(cache=True, error_model="numpy")
-def finish(active, F, I, obs_all, obs, obs32, core):  # pragma: no cover - compiled
+def finish(idle, F, I, obs_all, obs, obs32, core):  # pragma: no cover - compiled
     """The end of a step (by :func:`step` itself, or after it and the caller's reward, in ``core.out.reward``):
-    :func:`settle` of the ``active`` scenes, :func:`record` of them, and the ego's
+    :func:`settle` of the scenes not ``idle``, :func:`record` of them, and the ego's
     :func:`observe` of the new state (``F``, ``I``, ``obs_all``) into ``obs`` (``(n, m)``, or
     nothing when it has no rows); with feature bounds (``core.plan.f_low``, ``f_high``; version
     1, empty for version 0) the observation with the safety-margin features as the environments
     emit it, :func:`features32` of ``obs`` into ``obs32``. Returns :func:`settle`'s counts."""
     w, sc, p, o = core.world, core.scenes, core.plan, core.out
-    n_rows, n_ended = settle(active, o.reward, o.bo, w.k, sc.steps, p.terminate, sc.episode_return, o.terminated,
+    n_rows, n_ended = settle(idle, o.reward, o.bo, w.k, sc.steps, p.terminate, sc.episode_return, o.terminated,
                              o.truncated, o.rows, o.ended)
     record(o.rows[:n_rows], w.k, o.fl[F_T], (F[1], F[2], I[0], F[6], F[5], F[4]), sc)
     if obs.shape[0] > 0:

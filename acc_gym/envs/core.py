@@ -19,7 +19,6 @@ score see the true state.
 from __future__ import annotations
 
 import math
-import operator
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,6 +37,7 @@ from acc_gym.scenarios.world import ABSENT_X, scene_arrays
 from acc_gym.simulation.single_lane import SingleLaneWorld
 
 SLOTS = 3
+_F_T, _F_Q, _F_GS, _F_A = K.F_T, K.F_Q, K.F_GS, K.F_A  # a step's floats read by info_row
 DT = 0.2  # [s] every built-in scenario's step
 LANE_WIDTH = 3.75  # [m]
 _RECORD = K.RECORD  # the episode record's columns (EgoTrace's)
@@ -278,15 +278,14 @@ class EpisodeBatch:
         a_all = w.decide(a_des)
         x, v, a = w.x, w.v, w.a
         buf = w.reused_buffers()
-        buf.obs.setflags(write=True)
         obs, obs32 = plan.fresh_observations(self.n)
-        active = ~self.done if active is None else active
-        n_rows, n_ended = K.step(a_all, x, v, a, buf.F, buf.I, buf.obs, obs, obs32, active, core)
+        idle = self.done if active is None else ~np.asarray(active, dtype=bool)  # the scenes not stepped
+        n_rows, n_ended = K.step(a_all, x, v, a, buf.F, buf.I, buf.obs, obs, obs32, idle, core)
         w.adopt_buffers(buf)  # the world has moved (whatever the reward below does)
         self._python_terms = None
         if n_rows < 0:  # a reward that is not built in, on the step's criteria; then the step's end
             self._python_terms = self._python_reward(plan)
-            n_rows, n_ended = K.finish(active, buf.F, buf.I, buf.obs, obs, obs32, core)
+            n_rows, n_ended = K.finish(idle, buf.F, buf.I, buf.obs, obs, obs32, core)
         self.last_obs = obs32 if plan.m0 is not None else None
         if self.car is not None:
             self._car_after_step()
@@ -316,7 +315,6 @@ class EpisodeBatch:
 
     # the floats of a step's info: its key and criteria row
     _INFO_ROWS = (("t", K.F_T), ("q", K.F_Q), ("g", K.F_Q), ("gap_safe", K.F_GS), ("a_applied", K.F_A))
-    _INFO_KEYS, _INFO_PICK = tuple(k for k, _ in _INFO_ROWS), operator.itemgetter(*(r for _, r in _INFO_ROWS))
 
     def info(self, active: np.ndarray | None = None) -> dict:
         """The last step's info over the scenes, as fresh arrays: the time ``t`` [s], ``q`` and
@@ -335,19 +333,25 @@ class EpisodeBatch:
         return info
 
     def info_row(self, row: int) -> dict:
-        """:meth:`info` of scene ``row``, as Python numbers (the single environment's)."""
+        """:meth:`info` of scene ``row``, as Python numbers (the single environment's; the same
+        keys and values)."""
         plan = self._plan if self._plan is not None else self._step_plan()
-        f = plan.fl[:, row].tolist()  # one conversion for every float of the step
-        info = dict(zip(self._INFO_KEYS, self._INFO_PICK(f)))
+        fl, terms_col = plan.columns[row]
+        f = fl.tolist()  # one conversion for every float of the step
+        q = f[_F_Q]
+        n = self.n
         mode = self.drivers.info.get("mode")  # rows: each slot's scenes in turn
+        if mode is None:
+            modes = np.full(SLOTS - 1, -1, np.int64)
+        else:
+            modes = mode.copy() if n == 1 else mode[row::n].copy()
         fb = self.drivers.fallbacks
-        info.update(violation=bool(plan.bo[K.B_VIOLATION, row]),
-                    modes=mode[row::self.n].copy() if mode is not None else np.full(SLOTS - 1, -1, np.int64),
-                    fallbacks=int(fb[row]) + int(fb[row + self.n]))  # the POV's and the POV2's
         terms = self._python_terms
-        info["rewards"] = (dict(zip(plan.names, plan.terms[:, row].tolist())) if terms is None
-                           else {k: float(np.asarray(v).reshape(-1)[row]) for k, v in terms.items()})
-        return info
+        return {"t": f[_F_T], "q": q, "g": q, "gap_safe": f[_F_GS], "a_applied": f[_F_A],
+                "violation": bool(plan.bo[K.B_VIOLATION, row]), "modes": modes,
+                "fallbacks": int(fb[row]) + int(fb[row + n]),  # the POV's and the POV2's
+                "rewards": (dict(zip(plan.names, terms_col.tolist())) if terms is None
+                            else {k: float(np.asarray(v).reshape(-1)[row]) for k, v in terms.items()})}
 
     def _ended(self, ended: np.ndarray) -> dict:
         """The final info of each scene in ``ended`` (their episodes ended this step, now marked done)."""
@@ -398,10 +402,12 @@ class EpisodeBatch:
         else:
             m0, low, high = None, np.zeros(1), np.zeros(1)
         n = self.n
+        fl, terms = np.zeros((K.N_FLOAT + 1, n)), np.zeros((len(names), n))
         plan = self._plan = _StepPlan(
             reward_fn=self.reward_fn, obs_bounds=self.obs_bounds, code=code, names=tuple(names), m0=m0,
             extra=f_low.shape[0], a_comfort=float(self.config.scoring.a_x_comfort),
-            fl=np.zeros((K.N_FLOAT + 1, n)), bo=np.zeros((K.N_BOOL, n), dtype=bool), terms=np.zeros((len(names), n)),
+            fl=fl, bo=np.zeros((K.N_BOOL, n), dtype=bool), terms=terms,
+            columns=tuple((fl[:, r], terms[:, r]) for r in range(n)),
             reward=np.zeros(n), terminated=np.zeros(n, dtype=bool), truncated=np.zeros(n, dtype=bool),
             rows=np.empty(n, dtype=np.int64), ended=np.empty(n, dtype=np.int64),
             fields=np.empty((n, m0 if m0 is not None else 0)))
@@ -467,6 +473,7 @@ class _StepPlan:
     rows: np.ndarray
     ended: np.ndarray
     fields: np.ndarray  # (n, m0) float64: version 1's v0 fields before the features (read within the step)
+    columns: tuple  # each scene's column of fl and of terms (views, for info_row)
 
     def fresh_observations(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """A step's observation arrays: the v0 fields as the kernel writes them and the emitted

@@ -378,12 +378,18 @@ class SingleLaneWorld:
     def observation_array(self, slot: int) -> np.ndarray:
         """What :meth:`observe` returns, as one read-only array ``(8, B)`` (rows
         :data:`acc_gym.simulation._world_kernel.OBS_FIELDS`)."""
-        if self._obs is None:  # every slot at once, on first use after a change of state
+        return self._observations()[slot]
+
+    def _observations(self) -> np.ndarray:
+        """Every slot's observation of this state, ``(S, 8, B)``, read-only: made on first use
+        after a change of state (one compiled call)."""
+        obs = self._obs
+        if obs is None:
             nb = self.neighbours
-            self._obs = np.empty((self.S, len(_K.OBS_FIELDS), self.B))
-            _K.observe_all(self.v, self.a, nb.lead, nb.gap, nb.lead2, nb.gap2, self.sensor_range, self._obs)
-            self._obs.setflags(write=False)  # shared by the slots' observations of this state
-        return self._obs[slot]
+            obs = self._obs = np.empty((self.S, len(_K.OBS_FIELDS), self.B))
+            _K.observe_all(self.v, self.a, nb.lead, nb.gap, nb.lead2, nb.gap2, self.sensor_range, obs)
+            obs.setflags(write=False)  # shared by the slots' observations of this state
+        return obs
 
     # ------------------------------------------------------------------ dynamics
     def step(self, ego_a_des=None) -> None:
@@ -414,8 +420,7 @@ class SingleLaneWorld:
         if laws is not None:
             from acc_gym.simulation import _rollout_kernel  # late: it joins the drivers' kernels
 
-            self.observation_array(0)
-            F, I, obs = _rollout_kernel.coast(steps, ego, self._obs.copy(), laws, self.kernel_record(), self.x, self.v,
+            F, I, obs = _rollout_kernel.coast(steps, ego, self._observations().copy(), laws, self.kernel_record(), self.x, self.v,
                                               xs, vs)
             self.adopt(F, I, obs)
             return xs, vs
@@ -436,15 +441,22 @@ class SingleLaneWorld:
             else:
                 if not (type(ego) is np.ndarray and ego.shape == (self.B,) and ego.dtype == np.float64):
                     ego = np.broadcast_to(np.asarray(ego_a_des, dtype=float), (self.B,))
-                if not (math.isfinite(ego[0]) if self.B == 1 else np.isfinite(ego).all()):
-                    check_finite("ego_a_des", ego)  # raises, naming the value
-                a_des[:, 0] = ego
+                if self.B == 1:  # the single env's command: one number
+                    e = float(ego[0])
+                    if not math.isfinite(e):
+                        check_finite("ego_a_des", ego)  # raises, naming the value
+                    a_des[0, 0] = e
+                else:
+                    if not np.isfinite(ego).all():
+                        check_finite("ego_a_des", ego)
+                    a_des[:, 0] = ego
         elif self.drivers[0] is None:
             raise ValueError("the ego has no model: pass ego_a_des to step()")
         joint = self.joint
         if joint is not None:  # every surrounding slot in one call: rows (s - 1) B + b
-            self.observation_array(0)  # makes every slot's observations of this state, (S, 8, B)
-            joint.act_world(self._obs, a_des)
+            joint.act_world(self._observations(), a_des)
+            if ego_a_des is not None:
+                return a_des
         for s in range(1 if joint is not None else self.S):  # the slots the joint drivers do not hold
             model = self.drivers[s]
             if (s == 0 and ego_a_des is not None) or model is None:
@@ -487,8 +499,7 @@ class SingleLaneWorld:
         """:meth:`adopt` of a set from :meth:`reused_buffers` (its views made once)."""
         self.x, self.v, self.a, self.a_des, self.y, self.a_y = buf.rows
         self.neighbours = buf.neighbours
-        buf.obs.setflags(write=False)
-        self._obs = buf.obs
+        self._obs = buf.obs_view
 
     def adopt(self, F: np.ndarray, I: np.ndarray, obs: np.ndarray) -> None:
         """Take the state a compiled :func:`~acc_gym.simulation._world_kernel.move` wrote into
@@ -506,12 +517,15 @@ class SingleLaneWorld:
 
 class StateBuffers:
     """One set of :meth:`SingleLaneWorld.move_buffers` kept for reuse, with the state's views
-    into it made once (:meth:`SingleLaneWorld.reused_buffers`)."""
+    into it made once (:meth:`SingleLaneWorld.reused_buffers`): ``obs`` is the observation
+    array a move writes, ``obs_view`` a read-only view of it, what the world hands out."""
 
-    __slots__ = ("F", "I", "obs", "rows", "neighbours")
+    __slots__ = ("F", "I", "obs", "obs_view", "rows", "neighbours")
 
     def __init__(self, F: np.ndarray, I: np.ndarray, obs: np.ndarray):
         self.F, self.I, self.obs = F, I, obs
+        self.obs_view = obs.view()
+        self.obs_view.setflags(write=False)  # shared by the slots' observations of the state
         x, v, a, a_des, y, a_y, gap, gap2 = F
         self.rows = (x, v, a, a_des, y, a_y)
         self.neighbours = Neighbours(lead=I[0], gap=gap, lead2=I[1], gap2=gap2)
@@ -521,8 +535,8 @@ class StateBuffers:
 
 
 def _unpickle_buffers(F: np.ndarray, I: np.ndarray, obs: np.ndarray) -> StateBuffers:
-    # obs copied into memory of its own: an unpickled array's data may be the pickle's bytes, and once made
-    # read-only (adopt_buffers) such an array cannot be made writeable again for the step that reuses it
+    # obs copied into memory of its own: an unpickled array's data may be the pickle's bytes, which numpy
+    # does not let a move write
     return StateBuffers(F, I, np.array(obs))
 
 

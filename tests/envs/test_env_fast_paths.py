@@ -86,7 +86,7 @@ def test_settle_equals_the_numpy_bookkeeping(terminate_on_violation):
     ret = ret0.copy()
     term, trunc = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
     rows, ended = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
-    n_rows, n_ended = K.settle(active, reward, bo, k, steps, terminate_on_violation, ret, term, trunc, rows, ended)
+    n_rows, n_ended = K.settle(~active, reward, bo, k, steps, terminate_on_violation, ret, term, trunc, rows, ended)
     assert np.array_equal(term, term_ref) and np.array_equal(trunc, trunc_ref)
     assert np.array_equal(rows[:n_rows], rows_ref) and np.array_equal(ended[:n_ended], ended_ref)
     assert np.array_equal(ret, ret_ref)
