@@ -23,7 +23,9 @@ key (``_steps_per_s``)    case
 ``env_v1_typical``        ``env_v1`` and ``env_v1_carfollowing`` with ``sensors`` and
 ``env_v1_carfollowing_    ``actuators`` ``"typical"`` (:mod:`acc_gym.onboard`; opt-in);
 typical``                 with the ideal case in the same run, ``*_typical_cost`` is
-                          their share of a step (``1 - rate / ideal rate``)
+                          their share of a step (``1 - rate / ideal rate``, of the
+                          medians; ``*_typical_cost_paired``: 1 - the median of each
+                          repeat's ratio, the two runs back to back)
 ``vector_env``            ``acc_gym/SingleLane-v0``, 256 envs; likewise
                           ``vector_env_idm``, ``vector_env_carfollowing``, ``vector_env_ncap``,
                           ``vector_env_v1``, ``vector_env_v1_idm``, ...
@@ -586,6 +588,9 @@ def main(argv=None) -> dict:
         if base in args.cases:
             for prefix in ("", "vector_"):
                 out[f"{prefix}{case}_cost"] = 1.0 - out[f"{prefix}{case}_steps_per_s"] / out[f"{prefix}{base}_steps_per_s"]
+                # each repeat's typical run against the ideal one timed just before it (the machine's state shared)
+                out[f"{prefix}{case}_cost_paired"] = 1.0 - paired_ratio(runs[f"{prefix}{case}_steps_per_s"],
+                                                                        runs[f"{prefix}{base}_steps_per_s"])
     if "env" in args.cases:
         out["vector_over_single"] = out["vector_env_steps_per_s"] / out["env_steps_per_s"]
     if args.workers > 1:

@@ -46,6 +46,8 @@ def test_bench_env_prices_the_typical_car_against_the_ideal_one_in_the_same_run(
     for prefix in ("", "vector_"):
         cost = out[f"{prefix}env_v1_typical_cost"]
         assert cost == 1.0 - out[f"{prefix}env_v1_typical_steps_per_s"] / out[f"{prefix}env_v1_steps_per_s"]
+        typical, ideal = out[f"{prefix}env_v1_typical_steps_per_s_runs"], out[f"{prefix}env_v1_steps_per_s_runs"]
+        assert out[f"{prefix}env_v1_typical_cost_paired"] == pytest.approx(1.0 - typical[0] / ideal[0], abs=2e-3)  # (runs rounded)
 
 
 def test_bench_env_peers_times_sumo_on_the_same_work():

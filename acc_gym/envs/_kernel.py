@@ -31,6 +31,7 @@ from numba.experimental import structref
 
 from acc_gym.evaluation.scoring import SPEED_TOL
 from acc_gym.envs import observation as _O
+from acc_gym.onboard import _actuator_kernel as _A, _radar_kernel as _R
 from acc_gym.simulation import _world_kernel as _W
 
 # rows of criteria()'s float output
@@ -44,6 +45,7 @@ N_BOOL = 7
 TERMS = ("band", "efficiency", "speed", "comfort", "jerk", "safety", "collision", "lag")
 # step()'s reward: none (a reward object computes it), CriteriaReward's, MarginReward's
 REWARD_NONE, REWARD_CRITERIA, REWARD_MARGIN = 0, 1, 2
+RADAR_LO = 2  # the observation's radar fields: gap, relative speed, in range (columns 2-4)
 # the episode record's rows (EgoTrace columns)
 RECORD = ("t", "v", "a", "gap", "v_lead", "a_lead", "lead_id", "a_y", "d2", "d3")
 
@@ -73,6 +75,11 @@ class OutType(_Fields):
 
 
 @structref.register
+class CarType(_Fields):
+    """numba's type of a :data:`CAR_FIELDS` record."""
+
+
+@structref.register
 class CoreType(_Fields):
     """numba's type of a :data:`CORE_FIELDS` record."""
 
@@ -82,7 +89,7 @@ class Record(structref.StructRefProxy):
     tables); Python keeps its own references to the same arrays (:class:`acc_gym.envs.core.EpisodeBatch`)."""
 
 
-for _t in (ScenesType, PlanType, OutType, CoreType):
+for _t in (ScenesType, PlanType, OutType, CarType, CoreType):
     structref.define_boxing(_t, Record)
 
 _F1, _F2, _F3 = types.float64[::1], types.float64[:, ::1], types.float64[:, :, ::1]
@@ -124,8 +131,28 @@ OUT_FIELDS = (
     ("terminated", _B1), ("truncated", _B1),
     ("rows", _I1), ("ended", _I1),  # the scenes stepped and those whose episode ended (first counts)
 )
+# the ego's car (acc_gym.envs.car.Car): its actuators and its radar, the records and arrays of
+# acc_gym.onboard's kernels (a part not modelled is off and holds empty arrays)
+CAR_FIELDS = (
+    ("actuated", types.bool_),  # the actuators are modelled
+    ("vehicles", numba.typeof(np.zeros(1, dtype=_A.VEHICLE))),  # (n,) each ego's actuator
+    ("hist", _F2),  # (H, n) [m/s^2] the last commands
+    ("head", _I1),  # (1,) the newest row of hist
+    ("realised", _F1),  # (n,) [m/s^2] what the vehicles are asked to realise this step
+    ("sensing", types.bool_),  # the radar is modelled
+    ("radar", numba.typeof(np.zeros(1, dtype=_R.RADAR))),  # (1,) its constants and clock
+    ("tracks", numba.typeof(np.zeros(1, dtype=_R.SCENE))),  # (n,) each scene's track and dropout chain
+    ("reports", _F3),  # (latency + 1, n, 3)
+    ("draws", _F3),  # (n, BLOCK, 3)
+    ("every", _I1),  # (n,) every scene, the rows the radar steps
+    ("sensed", _F2),  # (n, 3) its step's reports
+    ("pos_max", _I1),  # (1,) the largest next draw position after its last step
+    ("seen", _F2),  # (n, 11) the last observed v0 fields the car changes
+    ("fields", _F2),  # (n, m) float64 scratch: an observation's v0 fields
+)
 SCENES, PLAN, OUT = ScenesType(list(SCENE_FIELDS)), PlanType(list(PLAN_FIELDS)), OutType(list(OUT_FIELDS))
-CORE_FIELDS = (("world", _W.WORLD), ("scenes", SCENES), ("plan", PLAN), ("out", OUT))
+CAR = CarType(list(CAR_FIELDS))
+CORE_FIELDS = (("world", _W.WORLD), ("scenes", SCENES), ("plan", PLAN), ("out", OUT), ("car", CAR))
 CORE = CoreType(list(CORE_FIELDS))
 
 
@@ -156,17 +183,36 @@ def make_out(f):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def make_core(world, scenes, plan, out):  # pragma: no cover - compiled
-    """A :data:`CORE` record of these four."""
-    r = structref.new(CORE)
-    r.world, r.scenes, r.plan, r.out = world, scenes, plan, out
+def make_car(f):  # pragma: no cover - compiled
+    """A :data:`CAR` record of the values ``f``, in :data:`CAR_FIELDS` order."""
+    r = structref.new(CAR)
+    r.actuated, r.vehicles, r.hist, r.head, r.realised = f[0], f[1], f[2], f[3], f[4]
+    r.sensing, r.radar, r.tracks, r.reports, r.draws, r.every = f[5], f[6], f[7], f[8], f[9], f[10]
+    r.sensed, r.pos_max, r.seen, r.fields = f[11], f[12], f[13], f[14]
     return r
+
+
+@numba.njit(cache=True)
+def make_core(world, scenes, plan, out, car):  # pragma: no cover - compiled
+    """A :data:`CORE` record of these five."""
+    r = structref.new(CORE)
+    r.world, r.scenes, r.plan, r.out, r.car = world, scenes, plan, out, car
+    return r
+
+
+def no_car() -> dict:
+    """:data:`CAR_FIELDS`' values of a car that models nothing (both parts off, empty arrays)."""
+    return dict(actuated=False, vehicles=np.zeros(0, dtype=_A.VEHICLE), hist=np.zeros((1, 0)),
+                head=np.zeros(1, dtype=np.int64), realised=np.zeros(0), sensing=False,
+                radar=np.zeros(1, dtype=_R.RADAR), tracks=np.zeros(0, dtype=_R.SCENE), reports=np.zeros((1, 0, 3)),
+                draws=np.zeros((0, 1, 3)), every=np.zeros(0, dtype=np.int64), sensed=np.zeros((0, 3)),
+                pos_max=np.zeros(1, dtype=np.int64), seen=np.zeros((0, 11)), fields=np.zeros((0, 7)))
 
 
 def record_of(fields: tuple, values: dict):
     """The record of ``fields`` (a ``*_FIELDS`` table) holding ``values`` by name: the one place
     their order is read (a C-contiguous array is shared, not copied)."""
-    make = {SCENE_FIELDS: make_scenes, PLAN_FIELDS: make_plan, OUT_FIELDS: make_out}[fields]
+    make = {SCENE_FIELDS: make_scenes, PLAN_FIELDS: make_plan, OUT_FIELDS: make_out, CAR_FIELDS: make_car}[fields]
     out = []
     for name, t in fields:
         value = values[name]
@@ -399,11 +445,18 @@ def step(a_des, x, v, a, F, I, obs_all, obs, obs32, idle, core):  # pragma: no c
     the step's end, so it ends the step too (:func:`finish` of ``idle``, ``obs``, ``obs32``)
     and returns finish's counts; with :data:`REWARD_NONE` it returns ``(-1, -1)`` and the
     caller calls :func:`finish` after its reward."""
-    w, sc, p, o = core.world, core.scenes, core.plan, core.out
+    w, sc, p, o, car = core.world, core.scenes, core.plan, core.out, core.car
     n = w.k.shape[0]
     a_prev = np.empty(n)
     for i in range(n):
         a_prev[i] = a[i, 0]  # the ego's applied acceleration before the step [m/s^2]
+    if car.actuated:  # the egos' commands as their actuators realise them
+        u = np.empty(n)
+        for i in range(n):
+            u[i] = a_des[i, 0]
+        _A.command(car.vehicles, car.hist, car.head, u, a_prev, car.realised)
+        for i in range(n):
+            a_des[i, 0] = car.realised[i]
     t = o.fl[F_T]
     _W.move(a_des, x, v, w, F, I, obs_all, t)
     criteria(t, F[1], F[2], I[0], F[6], a_prev, w.dt, sc, p.cfg, o.fl, o.bo)
@@ -428,11 +481,46 @@ def finish(idle, F, I, obs_all, obs, obs32, core):  # pragma: no cover - compile
     n_rows, n_ended = settle(idle, o.reward, o.bo, w.k, sc.steps, p.terminate, sc.episode_return, o.terminated,
                              o.truncated, o.rows, o.ended)
     record(o.rows[:n_rows], w.k, o.fl[F_T], (F[1], F[2], I[0], F[6], F[5], F[4]), sc)
+    car = core.car
     if obs.shape[0] > 0:
         observe(obs_all[0], sc.set_speed, sc.time_gap, p.obs_range, p.v2v, p.low, p.high, obs)
-        if p.f_low.shape[0] > 0:
+        if p.f_low.shape[0] > 0 and not car.sensing:  # (with a radar: from its fields, below)
             features32(obs, p.obs_range, _O.B0, _O.B1, p.f_low, p.f_high, obs32)
+    if car.sensing:
+        radar_step(car, obs_all[0], F[4], w.width, I[0], I[1], p, obs, obs32)
     return n_rows, n_ended
+
+
+@numba.njit(cache=True, error_model="numpy")
+def radar_step(car, truth, y, width, lead, lead2, p, obs, obs32):  # pragma: no cover - compiled
+    """The egos' radars after the world's move (:func:`acc_gym.onboard._radar_kernel.sense` of
+    every scene, in the new state: ``truth`` the egos' observation rows ``(8, n)``, ``y``,
+    ``width``, ``lead``, ``lead2`` ``(n, S)``), their reports into ``car.seen``; with an
+    observation made (``obs`` the true v0 fields, rows), the emitted one ``obs32``: the true
+    fields rounded as emitted, the radar's replacing theirs (clipped to ``p.low``, ``p.high``)
+    and, with feature bounds, the ``-v1`` features computed from those fields
+    (:func:`features32`)."""
+    car.pos_max[0] = _R.sense(car.radar, car.tracks, car.reports, car.draws, truth, y, width, lead, lead2, car.every,
+                              False, car.sensed)
+    n = car.sensed.shape[0]
+    seen, sensed = car.seen, car.sensed
+    for i in range(n):
+        for j in range(3):
+            seen[i, RADAR_LO + j] = sensed[i, j]
+    if obs.shape[0] == 0:
+        return
+    fields = car.fields
+    m = fields.shape[1]
+    for i in range(n):
+        for j in range(m):
+            fields[i, j] = np.float32(obs[i, j])  # as emitted
+    clip_columns(seen, fields, RADAR_LO, RADAR_LO + 3, p.low, p.high)
+    if p.f_low.shape[0] > 0:
+        features32(fields, p.obs_range, _O.B0, _O.B1, p.f_low, p.f_high, obs32)
+    else:
+        for i in range(n):
+            for j in range(m):
+                obs32[i, j] = fields[i, j]
 
 
 REACH_BAND = 0.2  # [-] MarginReward's reach term: the score's band, 0 < Q < 0.2 Gapsafe (ScoringConfig.band_width)

@@ -2,9 +2,12 @@
 its actuators, its radar and its V2V link (:mod:`acc_gym.onboard`), over the batch's scenes.
 
 :class:`Car` is made only when the config models one of them (:meth:`Car.of`); without it the
-core's step and observations are untouched. Per step: :meth:`command` before the world moves
-(the actuators), :meth:`sense` after (the radar's and the link's fields replace the true ones
-in the observation, and the ``-v1`` features are computed from them). Scenes reset since the
+core's step and observations are untouched. Per step, inside the core's step kernel (it reads
+the car as one record, :meth:`Car.kernel_record`): the actuators turn the command into what the
+vehicle is asked to realise before the world moves (:func:`acc_gym.onboard._actuator_kernel.command`),
+and after it the radar steps and its fields replace the true ones in the observation, whose
+``-v1`` features are then computed from them (:func:`acc_gym.envs._kernel.radar_step`). The V2V
+link steps after the kernel (:meth:`receive`, then :meth:`apply`). Scenes reset since the
 last observation or step start their radar and link at the next one (:meth:`start_pending`),
 from the world's state then.
 
@@ -25,7 +28,7 @@ from acc_gym.envs import _kernel as K
 from acc_gym.onboard import Actuators, Radar
 from acc_gym.onboard.v2v import V2V_FIELDS, Link
 
-RADAR_FIELDS = slice(2, 5)  # gap, relative speed, in range
+RADAR_FIELDS = slice(K.RADAR_LO, K.RADAR_LO + 3)  # gap, relative speed, in range
 V2V_SLICE = slice(V2V_FIELDS[0], V2V_FIELDS[-1] + 1)  # the vehicle ahead's acceleration, the second vehicle
 
 
@@ -42,7 +45,13 @@ class Car:
         self.link = Link(config.v2v_link, self.n, dt, config.sensor_range) \
             if config.v2v and not config.v2v_link.ideal else None
         self.seen = np.zeros((self.n, 11))  # the last observed v0 fields the car changes (2-4, 7-10)
-        self._pending: dict[int, tuple] = {}  # row -> (radar's generator, error scale, link's generator)
+        self._pending: dict[int, tuple] = {}  # row -> ((bit generator class, parent seed sequence), error scale)
+        self._record = None  # the kernels' CAR record (made on first use)
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["_record"] = None  # a compiled record: made again after unpickling, of the copies' arrays
+        return state
 
     @property
     def pending(self) -> bool:
@@ -60,16 +69,16 @@ class Car:
         """New episodes in ``rows``: their generators ``rngs`` (None: from ``scenarios[j].seed``),
         the ego's starting accelerations ``a0``."""
         dr = self.config.randomise
-        gens = []
+        parents = []
         for j, rng in enumerate(rngs):
-            parent = rng.spawn(1)[0] if rng is not None else \
-                np.random.default_rng(np.random.SeedSequence(int(scenarios[j].seed)).spawn(1)[0])
-            gens.append(parent.spawn(3))  # randomisation, radar, link
-        drawn = [dr.draw(g[0]) for g in gens] if dr is not None else None
+            kind = type(rng.bit_generator) if rng is not None else np.random.PCG64
+            seq = rng.bit_generator.seed_seq if rng is not None else np.random.SeedSequence(int(scenarios[j].seed))
+            parents.append((kind, seq.spawn(1)[0]))  # its children: randomisation, radar, link
+        drawn = [dr.draw(_child(parent, 0)) for parent in parents] if dr is not None else None
         if self.actuators is not None:
             self.actuators.reset(np.array(rows), a0, None if drawn is None else [a for a, _ in drawn])
         for j, row in enumerate(rows):
-            self._pending[row] = (gens[j][1], 1.0 if drawn is None else drawn[j][1], gens[j][2])
+            self._pending[row] = (parents[j], 1.0 if drawn is None else drawn[j][1])
 
     def start_pending(self, world, fields: np.ndarray) -> None:
         """Start the radars and links of the scenes reset since the last call, in the world's
@@ -80,23 +89,42 @@ class Car:
         starts = [self._pending[r] for r in rows.tolist()]
         self._pending.clear()
         if self.radar is not None:
-            self.seen[rows, RADAR_FIELDS] = self.radar.reset(rows, [s[0] for s in starts], _truth(world),
+            self.seen[rows, RADAR_FIELDS] = self.radar.reset(rows, [_child(s[0], 1) for s in starts], _truth(world),
                                                              scales=[s[1] for s in starts])
         if self.link is not None:
-            self.link.reset(rows, [s[2] for s in starts])
+            self.link.reset(rows, [_child(s[0], 2) for s in starts])
             self.seen[rows, V2V_SLICE] = self.link.receive(fields[:, V2V_SLICE], rows)
 
     # ------------------------------------------------------------------ steps
-    def command(self, a_des, a_prev: np.ndarray) -> np.ndarray:
-        """What the egos' vehicles are asked to realise for commands ``a_des`` [m/s^2]."""
-        if self.actuators is None:
-            return a_des
-        return self.actuators.command(a_des, a_prev)  # (which takes them as float64 arrays)
+    def kernel_record(self):
+        """The car as the core's step kernel reads it (a :data:`~acc_gym.envs._kernel.CAR`
+        record holding the actuators', the radar's and this object's own arrays; made once)."""
+        if self._record is None:
+            values = K.no_car()
+            act, radar = self.actuators, self.radar
+            if act is not None:
+                values.update(actuated=True, vehicles=act.vehicles, hist=act.hist, head=act.head,
+                              realised=np.zeros(self.n))
+            if radar is not None:
+                values.update(sensing=True, radar=radar.radar, tracks=radar.scenes, reports=radar.reports,
+                              draws=radar.draws, every=radar._all, sensed=np.zeros((self.n, 3)),
+                              pos_max=radar.pos_max)
+            values.update(seen=self.seen, fields=np.zeros((self.n, 11 if self.config.v2v else 7)))
+            self._record = K.record_of(K.CAR_FIELDS, values)
+        return self._record
 
-    def sense(self, world, fields: np.ndarray) -> None:
-        """The radars' and links' step after the world's; ``fields`` the true v0 fields after it."""
+    def before_step(self, batch) -> None:
+        """What a step of ``batch`` (the core) needs first: the radars and links of scenes reset
+        since the last observation started, and a draw left for every radar."""
+        if self._pending:
+            m = 11 if self.config.v2v else 7
+            self.start_pending(batch.world, true_fields(batch, np.full(m, -np.inf), np.full(m, np.inf)))
         if self.radar is not None:
-            self.seen[:, RADAR_FIELDS] = self.radar.sense(_truth(world))
+            self.radar.ready()
+
+    def receive(self, fields: np.ndarray) -> None:
+        """The links' step after the world's (the radar's is in the step kernel); ``fields`` the
+        true v0 fields after it."""
         if self.link is not None:
             self.seen[:, V2V_SLICE] = self.link.receive(fields[:, V2V_SLICE])
 
@@ -106,6 +134,16 @@ class Car:
             K.clip_columns(self.seen, fields, RADAR_FIELDS.start, RADAR_FIELDS.stop, low, high)
         if self.link is not None:
             K.clip_columns(self.seen, fields, V2V_SLICE.start, V2V_SLICE.stop, low, high)
+
+
+def _child(parent: tuple, k: int) -> np.random.Generator:
+    """``Generator(kind(seq)).spawn(3)[k]`` of ``parent = (kind, seq)`` (a bit generator class and
+    a seed sequence that has spawned nothing), made alone: a seed sequence's ``k``-th child is
+    the one with its entropy and pool size and ``k`` appended to its spawn key
+    (:meth:`numpy.random.SeedSequence.spawn`), so the children not used are not made."""
+    kind, seq = parent
+    child = np.random.SeedSequence(seq.entropy, spawn_key=seq.spawn_key + (k,), pool_size=seq.pool_size)
+    return np.random.Generator(kind(child))
 
 
 def _truth(world) -> tuple:

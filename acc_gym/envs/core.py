@@ -10,20 +10,18 @@ vector environment equals ``n`` single ones by construction.
 
 With a sensor, actuator or V2V link model in the config (:mod:`acc_gym.onboard`; none with
 the ``ideal`` presets, the default) the ego's car (:class:`acc_gym.envs.car.Car`) stands
-between the controller and the world: its command passes the actuators before the step and
-the observation's radar and V2V fields pass the radar and the link after it (the ``-v1``
-features are computed from what they report). The world, the criteria, the reward and the
-score see the true state.
+between the controller and the world: inside the step's kernel the command passes the
+actuators before the move and the observation's radar fields pass the radar after it; the V2V
+link's fields are replaced after the kernel (the ``-v1`` features are computed from what they
+report). The world, the criteria, the reward and the score see the true state.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from acc_gym._validation import check_finite
 from acc_gym.drivers.slots import SlotDrivers, SlotView
 from acc_gym.envs import _kernel as K
 from acc_gym.envs.car import Car, true_fields
@@ -41,6 +39,7 @@ _F_T, _F_Q, _F_GS, _F_A = K.F_T, K.F_Q, K.F_GS, K.F_A  # a step's floats read by
 DT = 0.2  # [s] every built-in scenario's step
 LANE_WIDTH = 3.75  # [m]
 _RECORD = K.RECORD  # the episode record's columns (EgoTrace's)
+_NO_CAR = None  # the kernels' record of no car (EpisodeBatch._no_car)
 
 
 class EpisodeBatch:
@@ -211,18 +210,17 @@ class EpisodeBatch:
                 return out.astype(dtype, copy=False)
         return self._with_features(out, dtype) if extra else out
 
-    def _car_after_step(self) -> None:
-        """The car's radar and link after the world's step; :attr:`last_obs` with their fields (and
-        the ``-v1`` features computed from them)."""
+    def _link_after_step(self) -> None:
+        """The car's V2V link after the world's step (its radar stepped in the step kernel);
+        :attr:`last_obs` with the link's fields (and the ``-v1`` features computed from them)."""
         obs = self.last_obs
         m0 = 11 if self.config.v2v else 7
         if obs is not None:
             low, high = self.obs_bounds
             fields = obs[:, :m0].astype(float)
         else:
-            low = high = None
             fields = true_fields(self, np.full(m0, -np.inf), np.full(m0, np.inf))
-        self.car.sense(self.world, fields)
+        self.car.receive(fields)
         if obs is None:
             return
         self.car.apply(fields, low, high)
@@ -268,11 +266,13 @@ class EpisodeBatch:
         (:meth:`SingleLaneWorld.reused_buffers
         <acc_gym.simulation.single_lane.SingleLaneWorld.reused_buffers>`): a state array read
         from :attr:`world` keeps its values until the step after next. With a car in the config
-        the command passes its actuators first and the observation its radar and link last
-        (module docstring).
+        (:class:`~acc_gym.envs.car.Car`, read by the kernels as part of the core's record) the
+        kernel passes the command through its actuators before the move and the observation
+        through its radar at the step's end; a V2V link steps after the kernel.
         """
-        if self.car is not None:
-            a_des = self._car_command(a_des)
+        car = self.car
+        if car is not None:
+            car.before_step(self)
         core, plan = self._kernel_core()
         w = self.world
         a_all = w.decide(a_des)
@@ -287,8 +287,8 @@ class EpisodeBatch:
             self._python_terms = self._python_reward(plan)
             n_rows, n_ended = K.finish(idle, buf.F, buf.I, buf.obs, obs, obs32, core)
         self.last_obs = obs32 if plan.m0 is not None else None
-        if self.car is not None:
-            self._car_after_step()
+        if car is not None and car.link is not None:
+            self._link_after_step()
         return plan.reward, plan.terminated, plan.truncated, self._ended(plan.ended[:n_ended]) if n_ended else {}
 
     def _python_reward(self, plan: "_StepPlan") -> dict:
@@ -299,19 +299,6 @@ class EpisodeBatch:
         reward, terms = self.reward_fn(ind)
         plan.reward[:] = np.broadcast_to(np.asarray(reward, dtype=float), (self.n,))
         return terms
-
-    def _car_command(self, a_des: np.ndarray) -> np.ndarray:
-        """The command as the car's actuators realise it (its radar and link started first for
-        the episodes that just began)."""
-        car = self.car
-        if car.pending:
-            m0 = 11 if self.config.v2v else 7
-            car.start_pending(self.world, true_fields(self, np.full(m0, -np.inf), np.full(m0, np.inf)))
-        if car.actuators is None:
-            return a_des
-        if not (math.isfinite(a_des[0]) if self.n == 1 else np.isfinite(a_des).all()):
-            check_finite("ego_a_des", a_des)  # raises, naming it, before it enters the actuators' history
-        return car.command(a_des, self.world.a[:, 0])
 
     # the floats of a step's info: its key and criteria row
     _INFO_ROWS = (("t", K.F_T), ("q", K.F_Q), ("g", K.F_Q), ("gap_safe", K.F_GS), ("a_applied", K.F_A))
@@ -379,8 +366,17 @@ class EpisodeBatch:
         world = self.world.kernel_record()
         core = self._core
         if core is None or core[0] is not world or core[1] is not plan:
-            core = self._core = (world, plan, K.make_core(world, self._scenes_record(), plan.record, plan.out))
+            car = self.car.kernel_record() if self.car is not None else self._no_car()
+            core = self._core = (world, plan, K.make_core(world, self._scenes_record(), plan.record, plan.out, car))
         return core[2], plan
+
+    @staticmethod
+    def _no_car():
+        """The :data:`~acc_gym.envs._kernel.CAR` record of a core without a car (one, shared)."""
+        global _NO_CAR
+        if _NO_CAR is None:
+            _NO_CAR = K.record_of(K.CAR_FIELDS, K.no_car())
+        return _NO_CAR
 
     def _step_plan(self) -> "_StepPlan":
         """What a step needs that changes only with :attr:`reward_fn` and :attr:`obs_bounds`

@@ -138,7 +138,7 @@ class Actuators:
             if m + 1 >= self.hist.shape[0]:
                 raise ValueError(f"a dead time of {cfg.dead_time:g} s is longer than these actuators hold "
                                  f"({(self.hist.shape[0] - 2) * self.dt:g} s)")
-            self.vehicles["m"][r], self.vehicles["f"][r], self.vehicles["alpha"][r] = m, f, cfg.alpha(self.dt)
+            self.vehicles[r] = (m, f, cfg.alpha(self.dt))  # the record's fields in VEHICLE's order
 
     def command(self, u: np.ndarray, a_prev: np.ndarray) -> np.ndarray:
         """What the vehicles are asked to realise this step [m/s^2], ``(n,)``, for commands

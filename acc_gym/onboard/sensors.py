@@ -42,7 +42,7 @@ the same order whatever the block size.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -113,12 +113,14 @@ class SensorConfig:
         """``L = ceil(latency / dt)`` (a latency within 1e-9 of a whole number of steps is that number)."""
         return int(math.ceil(self.latency / dt - 1e-9))
 
-    def chain(self, dt: float) -> tuple[float, float]:
-        """``(p, r)``: the per-step probabilities of a dropout starting and ending."""
-        if self.dropout_share == 0.0:
+    def chain(self, dt: float, share: float | None = None) -> tuple[float, float]:
+        """``(p, r)``: the per-step probabilities of a dropout starting and ending, for the
+        config's dropout share or ``share`` in its place."""
+        share = self.dropout_share if share is None else share
+        if share == 0.0:
             return 0.0, 1.0
         r = min(1.0, dt / self.dropout_burst)
-        return min(1.0, r * self.dropout_share / (1.0 - self.dropout_share)), r
+        return min(1.0, r * share / (1.0 - share)), r
 
 
 class Radar:
@@ -155,7 +157,8 @@ class Radar:
         self.draws = np.zeros((n, BLOCK, 3))  # each scene's next draws: uniform, normal, normal
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._all = np.arange(n, dtype=np.int64)
-        self._pos_max = BLOCK  # the largest next draw position of any scene (BLOCK: some block is used up)
+        # the largest next draw position of any scene (BLOCK: some block is used up), which the kernel writes
+        self.pos_max = np.full(1, BLOCK, dtype=np.int64)
 
     def _refill(self, rows: np.ndarray) -> None:
         """New blocks of draws for the scenes of ``rows`` that have used theirs."""
@@ -179,20 +182,25 @@ class Radar:
             self._rngs[r] = rngs[j]
             c = 1.0 if scales is None else float(scales[j])
             share = min(self.config.dropout_share * c, MAX_DROPOUT_SHARE)
-            sc["pos"][r], sc["scale"][r], sc["share"][r] = BLOCK, c, share
-            sc["p_start"][r] = replace(self.config, dropout_share=share).chain(self.dt)[0] if share > 0 else 0.0
+            rec = sc[r]  # (a structured scalar: a view of the scene's record)
+            rec["pos"], rec["scale"], rec["share"], rec["p_start"] = BLOCK, c, share, self.config.chain(self.dt, share)[0]
         self._refill(rows)
         out = np.empty((rows.shape[0], 3))
         K.sense(self.radar, sc, self.reports, self.draws, *truth, rows, True, out)
-        self._pos_max = int(sc["pos"].max())
+        self.pos_max[0] = sc["pos"].max()
         return out
+
+    def ready(self) -> None:
+        """Make sure every scene has a draw left for the next step (new blocks for those that
+        used theirs up): before each :meth:`sense` or compiled step of the radar."""
+        if self.pos_max[0] >= BLOCK:
+            self._refill(self._all)
 
     def sense(self, truth) -> np.ndarray:
         """One step of every scene in the world's state ``truth`` (``obs, y, width, lead, lead2``:
         :func:`acc_gym.onboard._radar_kernel.sense`'s world arrays); the observed ``(n, 3)``: gap
         [m], relative speed [m/s] and in-range flag."""
-        if self._pos_max >= BLOCK:
-            self._refill(self._all)
+        self.ready()
         out = np.empty((self.n, 3))
-        self._pos_max = K.sense(self.radar, self.scenes, self.reports, self.draws, *truth, self._all, False, out)
+        self.pos_max[0] = K.sense(self.radar, self.scenes, self.reports, self.draws, *truth, self._all, False, out)
         return out
