@@ -10,7 +10,7 @@ test, NCAP-style tests, stop-and-go, Monte Carlo traffic); and the evaluation
 (:mod:`acc_gym.evaluation`: paper 003's criteria and 100-point score).
 """
 
-__version__ = "0.37.0"
+__version__ = "0.38.0"
 
 from acc_gym.envs.registration import make_vec_env, qualified_id  # noqa: E402,F401  (cheap: SB3 imported on use)
 from acc_gym.envs.registration import register_envs as _register_envs  # noqa: E402  (cheap: ids only)

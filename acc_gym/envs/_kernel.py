@@ -14,10 +14,12 @@ the step into the episode records and :func:`action_to_accel` maps the actions.
 A step is two calls, :func:`step` (the world's move, the criteria, a built-in reward) and
 :func:`finish` (the end of the step, the records, the observations), with the caller's reward
 between them when it is not built in. Both read the core's state as one :data:`CORE` record
-of four named records: the world (:data:`acc_gym.simulation._world_kernel.WORLD`), the
-scenes' episodes (:data:`SCENES`), the step's settings (:data:`PLAN`) and its outputs
-(:data:`OUT`); only what changes every step (the commands, the state before and after the
-move, the fresh observation arrays) is passed beside it.
+of five named records: the world (:data:`acc_gym.simulation._world_kernel.WORLD`), the
+scenes' episodes (:data:`SCENES`), the step's settings (:data:`PLAN`), its outputs
+(:data:`OUT`) and the ego's car (:data:`CAR`: its actuators, applied to the command before the
+move, and its radar, stepped at the step's end; both off without a car); only what changes
+every step (the commands, the state before and after the move, the fresh observation arrays)
+is passed beside it.
 """
 
 from __future__ import annotations
