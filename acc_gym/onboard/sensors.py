@@ -35,8 +35,8 @@ accurate than the radar) and the set speed and time gap are not changed.
 **Randomness.** Each scene's draws come from its own generator, which the environment spawns
 from the scene's generator at every reset (:meth:`numpy.random.Generator.spawn`: the scene's
 own stream, and so its scenarios, stay those without a sensor model). Draws are made in blocks of
-:data:`BLOCK` steps (a uniform for the chain and two normals per step), the same numbers in
-the same order whatever the block size.
+:data:`BLOCK` steps: the block's uniforms for the chain, then its two normals per step (so a
+scene's numbers depend on :data:`BLOCK`, which is a constant of the model, not a setting).
 """
 
 from __future__ import annotations

@@ -7,6 +7,7 @@ need the runner to be root (the jail that builds namespaces and cgroups runs as 
 are skipped, with the reason, elsewhere.
 """
 
+import ast
 import os
 import socket
 from pathlib import Path
@@ -98,7 +99,13 @@ def test_the_process_count_is_capped(board):
 @needs_cgroup
 def test_memory_is_capped_for_the_whole_tree(board):
     text = log(board, "cheats:HoldsMemory")
-    assert text.count("CHEAT held") < 3, text[-2000:]  # 3 x 400 MiB do not fit in the tree's 1 GiB
+    # 3 x 400 MiB do not fit in the tree's 1 GiB at once: a child is stopped before it holds its
+    # block, or killed after (the kernel's OOM killer may pick one that already said so while the
+    # last one allocates), or the controller itself is killed (no "children ended" line)
+    ended = [line for line in text.splitlines() if line.startswith("CHEAT children ended")]
+    statuses = ast.literal_eval(ended[0].split("ended", 1)[1].strip()) if ended else None
+    killed = statuses is None and by_name(board["r"])["cheats:HoldsMemory"]["status"] != "ok"
+    assert text.count("CHEAT held") < 3 or killed or (statuses is not None and any(statuses)), text[-2000:]
 
 
 @needs_root
