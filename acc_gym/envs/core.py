@@ -19,6 +19,7 @@ report). The world, the criteria, the reward and the score see the true state.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -39,7 +40,6 @@ _F_T, _F_Q, _F_GS, _F_A = K.F_T, K.F_Q, K.F_GS, K.F_A  # a step's floats read by
 DT = 0.2  # [s] every built-in scenario's step
 LANE_WIDTH = 3.75  # [m]
 _RECORD = K.RECORD  # the episode record's columns (EgoTrace's)
-_NO_CAR = None  # the kernels' record of no car (EpisodeBatch._no_car)
 
 
 class EpisodeBatch:
@@ -366,17 +366,9 @@ class EpisodeBatch:
         world = self.world.kernel_record()
         core = self._core
         if core is None or core[0] is not world or core[1] is not plan:
-            car = self.car.kernel_record() if self.car is not None else self._no_car()
+            car = self.car.kernel_record() if self.car is not None else _no_car()
             core = self._core = (world, plan, K.make_core(world, self._scenes_record(), plan.record, plan.out, car))
         return core[2], plan
-
-    @staticmethod
-    def _no_car():
-        """The :data:`~acc_gym.envs._kernel.CAR` record of a core without a car (one, shared)."""
-        global _NO_CAR
-        if _NO_CAR is None:
-            _NO_CAR = K.record_of(K.CAR_FIELDS, K.no_car())
-        return _NO_CAR
 
     def _step_plan(self) -> "_StepPlan":
         """What a step needs that changes only with :attr:`reward_fn` and :attr:`obs_bounds`
@@ -446,6 +438,12 @@ class EpisodeBatch:
         sc = self.scenarios[row]
         return EgoTrace(**{key: self._rec[key][row, :k + 1].copy() for key in _RECORD}, set_speed=sc.set_speed,
                         time_gap=sc.time_gap, declared_time_gap=self.declared[row])
+
+
+@cache
+def _no_car():
+    """The :data:`~acc_gym.envs._kernel.CAR` record of a core without a car (one, shared)."""
+    return K.record_of(K.CAR_FIELDS, K.no_car())
 
 
 @dataclass(frozen=True, eq=False)
